@@ -1,0 +1,50 @@
+// Camera intrinsics in OpenCV's FileStorage YAML, with OpenCV's own key names (camera_matrix,
+// distortion_coefficients, image_width, image_height, avg_reprojection_error), so files from
+// OpenCV's calibration samples read here and files written here read in cv::FileStorage.
+// Lives in its own library (photomill_camera) because it links OpenCV's core.
+#pragma once
+
+#include <istream>
+#include <optional>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace photomill {
+
+// Pinhole camera with OpenCV's distortion model. Pixel convention: OpenCV's (centre of the
+// top-left pixel at (0, 0)).
+struct Camera {
+  int image_width_px = 0;
+  int image_height_px = 0;
+  // [fx s cx; 0 fy cy; 0 0 1], pixels.
+  Eigen::Matrix3d camera_matrix = Eigen::Matrix3d::Identity();
+  // OpenCV order: k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4 [tx ty]]]]; 4, 5, 8, 12 or 14 values
+  // (or none: no distortion).
+  std::vector<double> distortion;
+  std::optional<double> avg_reprojection_error_px;
+
+  double fx() const { return camera_matrix(0, 0); }
+  double fy() const { return camera_matrix(1, 1); }
+  double cx() const { return camera_matrix(0, 2); }
+  double cy() const { return camera_matrix(1, 2); }
+  bool operator==(const Camera&) const = default;
+};
+
+struct CameraYamlLimits {
+  // A camera file is a few kB; anything far larger is not one (and must not be parsed whole).
+  std::size_t max_bytes = 1 << 20;
+};
+
+// Throws InputError naming `source` on a missing key, a wrong matrix size, a non-finite value,
+// a non-positive focal length or image size.
+Camera read_camera_yaml(std::istream& in, const std::string& source, CameraYamlLimits limits = {});
+void write_camera_yaml(std::ostream& out, const Camera& camera);
+
+// Checks the camera for sanity (positive focal lengths and image size, finite values, a
+// supported number of distortion coefficients). Throws InputError(source, 0, ...).
+void validate_camera(const Camera& camera, const std::string& source);
+
+}  // namespace photomill

@@ -1,0 +1,150 @@
+// camera.yaml: round trip, OpenCV interoperability in both directions, the real sample files
+// OpenCV ships, and malformed or hostile files.
+#include "formats/camera.hpp"
+
+#include <chrono>
+#include <fstream>
+#include <sstream>
+
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+
+#include "formats/error.hpp"
+#include "tests/temp_dir.hpp"
+
+namespace photomill {
+namespace {
+
+Camera sample_camera() {
+  Camera c;
+  c.image_width_px = 2000;
+  c.image_height_px = 1500;
+  c.camera_matrix << 2400.123456789012, 0, 999.5 + 1.0 / 3, 0, 2399.9, 749.25, 0, 0, 1;
+  c.distortion = {-0.1, 0.05, 1e-4, -2e-5, 0.0};
+  c.avg_reprojection_error_px = 0.123;
+  return c;
+}
+
+TEST(CameraYaml, RoundTripsExactly) {
+  std::stringstream s;
+  write_camera_yaml(s, sample_camera());
+  EXPECT_EQ(read_camera_yaml(s, "cam.yaml"), sample_camera()) << s.str();
+}
+
+TEST(CameraYaml, OpenCvReadsWhatWeWrite) {
+  test::TempDir dir;
+  const auto path = (dir.path() / "cam.yaml").string();
+  {
+    std::ofstream f(path);
+    write_camera_yaml(f, sample_camera());
+  }
+  cv::FileStorage fs(path, cv::FileStorage::READ);
+  ASSERT_TRUE(fs.isOpened());
+  cv::Mat k, d;
+  fs["camera_matrix"] >> k;
+  fs["distortion_coefficients"] >> d;
+  EXPECT_EQ(static_cast<int>(fs["image_width"]), 2000);
+  EXPECT_EQ(k.at<double>(0, 0), sample_camera().fx());
+  EXPECT_EQ(k.at<double>(0, 2), sample_camera().cx());
+  EXPECT_EQ(d.total(), 5u);
+  EXPECT_EQ(d.at<double>(2), 1e-4);
+  EXPECT_EQ(static_cast<double>(fs["avg_reprojection_error"]), 0.123);
+}
+
+TEST(CameraYaml, WeReadWhatOpenCvWrites) {
+  test::TempDir dir;
+  const auto path = (dir.path() / "cv.yaml").string();
+  {
+    cv::FileStorage fs(path, cv::FileStorage::WRITE);
+    fs << "image_width" << 640 << "image_height" << 480;
+    fs << "camera_matrix" << (cv::Mat_<double>(3, 3) << 500, 0, 320, 0, 501, 240, 0, 0, 1);
+    fs << "distortion_coefficients" << (cv::Mat_<double>(1, 8) << 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8);
+  }
+  std::ifstream f(path);
+  const Camera c = read_camera_yaml(f, path);
+  EXPECT_EQ(c.fy(), 501);
+  EXPECT_EQ(c.distortion.size(), 8u);
+  EXPECT_FALSE(c.avg_reprojection_error_px);
+}
+
+class OpenCvSampleFiles : public ::testing::TestWithParam<std::tuple<const char*, double, double>> {};
+
+TEST_P(OpenCvSampleFiles, AreRead) {
+  const auto [file, fx, err] = GetParam();
+  const std::string path = std::string(PHOTOMILL_SHARED_DIR) + "/data/" + file;
+  std::ifstream f(path);
+  if (!f) GTEST_SKIP() << "shared data not found: " << path;
+  const Camera c = read_camera_yaml(f, path);
+  EXPECT_NEAR(c.fx(), fx, 1e-3);
+  EXPECT_EQ(c.image_width_px, 640);
+  EXPECT_EQ(c.distortion.size(), 5u);
+  ASSERT_TRUE(c.avg_reprojection_error_px);
+  EXPECT_NEAR(*c.avg_reprojection_error_px, err, 1e-4);
+}
+
+INSTANTIATE_TEST_SUITE_P(Shared, OpenCvSampleFiles,
+                         ::testing::Values(std::tuple{"opencv-chessboard/left_intrinsics.yml", 535.9157, 0.39259},
+                                           std::tuple{"opencv-aruco/tutorial_camera_charuco.yml", 452.5107, 0.18235}));
+
+std::string camera_error(const std::string& text) {
+  std::istringstream in(text);
+  try {
+    read_camera_yaml(in, "cam.yaml");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+std::string good_yaml() {
+  std::ostringstream s;
+  write_camera_yaml(s, sample_camera());
+  return s.str();
+}
+
+// Replaces `from` in a good file; a missing `from` yields a marker the test then fails on.
+std::string with(std::string text, const std::string& from, const std::string& to) {
+  const auto pos = text.find(from);
+  if (pos == std::string::npos) return "test bug: '" + from + "' not in the sample";
+  return text.replace(pos, from.size(), to);
+}
+
+struct BadCamera {
+  const char* name;
+  std::string text;
+  const char* message;
+};
+
+class CameraMalformed : public ::testing::TestWithParam<BadCamera> {};
+
+TEST_P(CameraMalformed, IsRejected) {
+  const auto start = std::chrono::steady_clock::now();
+  const std::string e = camera_error(GetParam().text);
+  EXPECT_NE(e.find(GetParam().message), std::string::npos) << e;
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(1));
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, CameraMalformed,
+    ::testing::Values(
+        BadCamera{"empty", "", "cam.yaml: empty input"},
+        BadCamera{"junk", std::string("\x00\x01\x02", 3), "binary data"},
+        BadCamera{"not_yaml", "this is not: [yaml", "cam.yaml: not a valid OpenCV YAML camera file"},
+        BadCamera{"missing_matrix", "image_width: 640\nimage_height: 480\n", "missing key 'camera_matrix'"},
+        BadCamera{"missing_width", with(good_yaml(), "image_width: 2000\n", ""), "missing key 'image_width'"},
+        BadCamera{"huge_matrix", with(good_yaml(), "rows: 3", "rows: 1000000"), "matrix declares rows: 1000000"},
+        BadCamera{"huge_matrix_2", with(good_yaml(), "cols: 3", "cols: 99999999999999"), "matrix declares cols"},
+        BadCamera{"wrong_size", with(with(good_yaml(), "rows: 3", "rows: 1"), "cols: 3", "cols: 9"), "camera_matrix must be 3x3"},
+        BadCamera{"negative_f", with(good_yaml(), "2400.123456789012", "-5."), "focal lengths fx, fy must be positive"},
+        BadCamera{"nan", with(good_yaml(), "2400.123456789012", ".nan"), "non-finite"},
+        BadCamera{"dist_count", with(with(good_yaml(), "rows: 5", "rows: 3"), "0.05, 1e-04, -2e-05, 0.", "0.05, 1e-04"), "distortion_coefficients has 3 values"},
+        BadCamera{"image_size", with(good_yaml(), "image_height: 1500", "image_height: 0"), "image size 2000x0 is not plausible"}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+TEST(CameraYaml, OversizedInputIsRefusedBeforeParsing) {
+  std::istringstream in(std::string(2 << 20, ' '));
+  EXPECT_THROW(read_camera_yaml(in, "big.yaml"), InputError);
+}
+
+}  // namespace
+}  // namespace photomill

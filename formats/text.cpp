@@ -1,0 +1,121 @@
+#include "formats/text.hpp"
+
+#include <charconv>
+#include <cmath>
+
+#include "formats/error.hpp"
+
+namespace photomill {
+
+LineReader::LineReader(std::istream& in, std::string source, LineReaderOptions options)
+    : in_(in), source_(std::move(source)), options_(options),
+      line_number_(options.first_line_number - 1) {}
+
+// Reads one raw line into buffer_ without letting it grow past max_line_bytes.
+bool LineReader::read_raw_line() {
+  buffer_.clear();
+  std::streambuf* sb = in_.rdbuf();
+  if (sb == nullptr) return false;
+  bool any = false;
+  for (;;) {
+    const int c = sb->sbumpc();
+    if (c == std::char_traits<char>::eof()) {
+      if (!any) return false;
+      break;
+    }
+    any = true;
+    if (c == '\n') break;
+    if (buffer_.size() >= options_.max_line_bytes) {
+      ++line_number_;
+      fail("line longer than " + std::to_string(options_.max_line_bytes) + " bytes");
+    }
+    buffer_.push_back(static_cast<char>(c));
+  }
+  ++line_number_;
+  if (!buffer_.empty() && buffer_.back() == '\r') buffer_.pop_back();
+  if (line_number_ == 1 && options_.first_line_number == 1 && buffer_.rfind("\xEF\xBB\xBF", 0) == 0) buffer_.erase(0, 3);
+  if (buffer_.find('\0') != std::string::npos) fail("binary data (NUL byte) in a text file");
+  return true;
+}
+
+std::optional<std::string_view> LineReader::next() {
+  while (read_raw_line()) {
+    if (options_.skip_comments_and_blank) {
+      const std::string_view t = trim(buffer_);
+      if (t.empty() || t.front() == '#') continue;
+    }
+    return std::string_view(buffer_);
+  }
+  return std::nullopt;
+}
+
+void LineReader::fail(const std::string& message) const {
+  throw InputError(source_, line_number_, message);
+}
+
+std::string_view trim(std::string_view s) {
+  const auto is_space = [](char c) { return c == ' ' || c == '\t'; };
+  while (!s.empty() && is_space(s.front())) s.remove_prefix(1);
+  while (!s.empty() && is_space(s.back())) s.remove_suffix(1);
+  return s;
+}
+
+std::vector<std::string_view> split_fields(std::string_view line, char delimiter) {
+  std::vector<std::string_view> fields;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t end = line.find(delimiter, start);
+    if (end == std::string_view::npos) {
+      fields.push_back(trim(line.substr(start)));
+      return fields;
+    }
+    fields.push_back(trim(line.substr(start, end - start)));
+    start = end + 1;
+  }
+}
+
+std::vector<std::string_view> split_whitespace(std::string_view line) {
+  std::vector<std::string_view> fields;
+  const auto is_sep = [](char c) { return c == ' ' || c == '\t' || c == ','; };
+  std::size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && is_sep(line[i])) ++i;
+    const std::size_t start = i;
+    while (i < line.size() && !is_sep(line[i])) ++i;
+    if (i > start) fields.push_back(line.substr(start, i - start));
+  }
+  return fields;
+}
+
+std::optional<double> parse_double(std::string_view field) {
+  if (!field.empty() && field.front() == '+') field.remove_prefix(1);
+  if (field.empty()) return std::nullopt;
+  double value = 0;
+  const auto [ptr, ec] = std::from_chars(field.data(), field.data() + field.size(), value);
+  if (ec != std::errc() || ptr != field.data() + field.size()) return std::nullopt;
+  if (!std::isfinite(value)) return std::nullopt;
+  return value;
+}
+
+std::optional<std::int64_t> parse_int(std::string_view field) {
+  if (!field.empty() && field.front() == '+') field.remove_prefix(1);
+  if (field.empty()) return std::nullopt;
+  std::int64_t value = 0;
+  const auto [ptr, ec] = std::from_chars(field.data(), field.data() + field.size(), value);
+  if (ec != std::errc() || ptr != field.data() + field.size()) return std::nullopt;
+  return value;
+}
+
+void append_double(std::string& out, double value) {
+  char buf[32];
+  const auto [ptr, ec] = std::to_chars(buf, buf + sizeof buf, value);
+  out.append(buf, ec == std::errc() ? ptr : buf);
+}
+
+std::string format_double(double value) {
+  std::string s;
+  append_double(s, value);
+  return s;
+}
+
+}  // namespace photomill

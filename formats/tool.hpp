@@ -1,0 +1,67 @@
+// The tool contract every photomill executable follows (see README "Conventions"):
+// --help with a pipe example, --version, -q/-v; inputs as files or '-' (stdin); output to -o FILE
+// (written to a temporary name and renamed on success) or stdout; exit 0 ok, 1 bad input or
+// failure, 2 bad usage; C locale whatever the user's locale.
+#pragma once
+
+#include <functional>
+#include <iosfwd>
+#include <memory>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+namespace photomill::tool {
+
+struct ToolSpec {
+  std::string name;         // "calib"
+  std::string summary;      // one line: what it does
+  std::string example;      // one-line pipe example shown in --help
+};
+
+// Builds the CLI11 app (adds --version, -q, -v), lets `configure` add the tool's options, parses,
+// then runs `body`. Returns the exit code: 0 ok (and for --help/--version), 2 bad usage
+// (CLI11 parse errors, photomill::UsageError), 1 for any other exception, whose message is
+// printed as "name: message" on stderr. Installs SIGINT/SIGTERM handlers that remove the
+// temporary files of unfinished OutputFiles.
+int run(int argc, char** argv, const ToolSpec& spec,
+        const std::function<void(CLI::App&)>& configure, const std::function<void()>& body);
+
+// Source name used in messages: "<stdin>" for "-", else the path.
+std::string source_name(const std::string& path);
+
+// Opens `path` for reading ("-" = stdin, binary mode). Throws InputError(path, 0, reason) if it
+// cannot be opened or is a directory.
+std::unique_ptr<std::istream> open_input(const std::string& path);
+
+// Reads a whole input into memory (for readers that need random access, e.g. OCCT), refusing
+// inputs larger than max_bytes.
+std::string read_all(const std::string& path, std::size_t max_bytes);
+
+// An output that is either stdout ("-" or empty path) or a file written under a temporary name
+// in the same folder and renamed onto `path` by commit(). If the object is destroyed without
+// commit() (an exception, a signal), the temporary file is removed and `path` is untouched.
+class OutputFile {
+public:
+  explicit OutputFile(std::string path);
+  ~OutputFile();
+  OutputFile(const OutputFile&) = delete;
+  OutputFile& operator=(const OutputFile&) = delete;
+
+  std::ostream& stream();
+  // A file path that a library writing by name (Open CASCADE) can write to. For stdout outputs a
+  // temporary file whose contents commit() copies to stdout.
+  const std::string& temp_path();
+  void commit();
+  bool is_stdout() const { return to_stdout_; }
+  const std::string& path() const { return path_; }
+
+private:
+  std::string path_;
+  bool to_stdout_;
+  std::string temp_;
+  std::unique_ptr<std::ofstream> file_;
+  bool committed_ = false;
+};
+
+}  // namespace photomill::tool
