@@ -1,0 +1,556 @@
+// Open CASCADE glue behind formats/cad.hpp: photomill's BSplineSurface <-> Geom_BSplineSurface,
+// one face per surface, STEP/IGES through the XSControl readers and writers. Every entry point
+// silences Open CASCADE's messenger (stdout by default), sets the exchange parameters it relies
+// on, and turns Standard_Failure into InputError.
+#include "formats/cad.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string_view>
+#include <utility>
+
+#include <BRepBuilderAPI_MakeEdge.hxx>
+#include <BRepBuilderAPI_MakeFace.hxx>
+#include <BRepBuilderAPI_MakeVertex.hxx>
+#include <BRepBuilderAPI_MakeWire.hxx>
+#include <BRepBuilderAPI_NurbsConvert.hxx>
+#include <BRepLib.hxx>
+#include <BRepTools.hxx>
+#include <BRepTools_WireExplorer.hxx>
+#include <BRep_Tool.hxx>
+#include <Geom2d_BSplineCurve.hxx>
+#include <Geom2d_BezierCurve.hxx>
+#include <Geom2d_Curve.hxx>
+#include <Geom2d_Line.hxx>
+#include <Geom2d_TrimmedCurve.hxx>
+#include <Geom_BSplineSurface.hxx>
+#include <Geom_RectangularTrimmedSurface.hxx>
+#include <IFSelect_ReturnStatus.hxx>
+#include <IGESControl_Controller.hxx>
+#include <IGESControl_Reader.hxx>
+#include <IGESControl_Writer.hxx>
+#include <IGESData_IGESModel.hxx>
+#include <IGESData_IGESWriter.hxx>
+#include <IGESSelect_WorkLibrary.hxx>
+#include <Interface_FloatWriter.hxx>
+#include <Interface_Static.hxx>
+#include <Message.hxx>
+#include <Message_Messenger.hxx>
+#include <Message_Printer.hxx>
+#include <Precision.hxx>
+#include <STEPControl_Controller.hxx>
+#include <STEPControl_Reader.hxx>
+#include <STEPControl_Writer.hxx>
+#include <Standard_Failure.hxx>
+#include <StepData_Protocol.hxx>
+#include <StepData_StepModel.hxx>
+#include <StepData_StepWriter.hxx>
+#include <TColStd_Array1OfInteger.hxx>
+#include <TColStd_Array1OfReal.hxx>
+#include <TColStd_Array2OfReal.hxx>
+#include <TColgp_Array2OfPnt.hxx>
+#include <TopExp_Explorer.hxx>
+#include <TopoDS.hxx>
+#include <TopoDS_Face.hxx>
+#include <TopoDS_Wire.hxx>
+#include <XSControl_WorkSession.hxx>
+
+#include "formats/error.hpp"
+#include "formats/log.hpp"
+
+namespace photomill {
+namespace {
+
+// A face boundary edge that is curved in (u,v) becomes this many polygon vertices.
+constexpr int kSamplesPerCurvedEdge = 32;
+// Open CASCADE's STEP and IGES writers format each real into a 24-byte buffer; with the 17
+// significant digits written here, |x| >= 1e100 ("-1.2345678901234567E+100") would overflow it.
+constexpr double kMaxWritableMagnitude = 1e99;
+
+// ---------------------------------------------------------------------------------------------
+// Open CASCADE set-up
+
+// Forwards Open CASCADE's messages to photomill's log (stderr, and only with -v), and keeps the
+// first failure since clear_problem() so that an InputError can quote the parser's complaint.
+class LogPrinter : public Message_Printer {
+  DEFINE_STANDARD_RTTI_INLINE(LogPrinter, Message_Printer)
+
+public:
+  void clear_problem() { problem_.clear(); }
+  const std::string& problem() const { return problem_; }
+
+protected:
+  void send(const TCollection_AsciiString& text, const Message_Gravity gravity) const override {
+    if (gravity < myTraceLevel) return;
+    std::string_view message(text.ToCString());
+    while (!message.empty() && (message.front() == '*' || std::isspace(static_cast<unsigned char>(message.front())))) {
+      message.remove_prefix(1);
+    }
+    while (!message.empty() && (message.back() == '*' || std::isspace(static_cast<unsigned char>(message.back())))) {
+      message.remove_suffix(1);
+    }
+    if (message.empty()) return;
+    if (gravity >= Message_Fail && problem_.empty()) problem_ = message;
+    log::debug("Open CASCADE: " + std::string(message));
+  }
+
+private:
+  mutable std::string problem_;
+};
+
+// The printer that replaces the default one. Open CASCADE's messenger is global and starts with
+// a printer to std::cout.
+LogPrinter& occt_printer() {
+  static const Handle(LogPrinter) printer = [] {
+    Handle(LogPrinter) p = new LogPrinter;
+    const Handle(Message_Messenger)& messenger = Message::DefaultMessenger();
+    messenger->ChangePrinters().Clear();
+    messenger->AddPrinter(p);
+    STEPControl_Controller::Init();
+    IGESControl_Controller::Init();
+    return p;
+  }();
+  return *printer;
+}
+
+// Called at the start of every public function. The Interface_Static parameters are global and
+// any other code in the process may change them, so they are set again on every call. Writers
+// and readers read them when constructed: construct them after this.
+void prepare_occt() {
+  occt_printer().clear_problem();
+  // Open CASCADE 7.6 has no "*.verbose" parameters; silence comes from the messenger alone.
+  Interface_Static::SetCVal("xstep.cascade.unit", "MM");  // unit of the shapes read and written
+  Interface_Static::SetCVal("write.step.unit", "MM");
+  Interface_Static::SetCVal("write.iges.unit", "MM");
+  Interface_Static::SetCVal("write.step.schema", "AP214IS");
+  Interface_Static::SetCVal("write.iges.brep.mode", "Faces");  // trimmed surface (144) per face
+  Interface_Static::SetCVal("write.step.product.name", "photomill");
+  Interface_Static::SetCVal("write.iges.header.product", "photomill");
+  Interface_Static::SetCVal("write.iges.header.author", "photomill");  // default: the user name
+  // 1 (the default) lets the IGES reader remove knots of C0 B-splines, or split them into C1
+  // pieces, to raise continuity: keep surfaces as written.
+  Interface_Static::SetIVal("read.iges.bspline.continuity", 0);
+}
+
+// Runs `body`, turning Open CASCADE's exceptions into InputError(path, 0, ...).
+template <typename Body>
+auto guarded(const std::string& path, const char* action, Body&& body) -> decltype(body()) {
+  try {
+    prepare_occt();
+    return body();
+  } catch (const Standard_Failure& e) {
+    const char* message = e.GetMessageString();
+    throw InputError(path, 0,
+                     std::string("Open CASCADE failed to ") + action + ": " +
+                         e.DynamicType()->Name() +
+                         (message != nullptr && *message != '\0' ? std::string(": ") + message : ""));
+  }
+}
+
+// 17 significant digits round-trip every double (max_digits10). SetFormat also turns off the
+// trailing-zero suppression, which only scans the first 16 characters and would truncate these.
+// Magnitudes below 1e-99 (three-digit exponents) get one digit less to fit the 24-byte buffer.
+void use_exact_reals(Interface_FloatWriter& writer) {
+  writer.SetFormat("%.16E");
+  writer.SetFormatForRange("%.15E", 0.0, 1e-99);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Conversion between photomill's full knot vectors and Open CASCADE's knots + multiplicities
+
+struct KnotsAndMults {
+  TColStd_Array1OfReal knots;
+  TColStd_Array1OfInteger mults;
+};
+
+KnotsAndMults distinct_knots(const std::vector<double>& full) {
+  std::vector<double> knots;
+  std::vector<int> mults;
+  for (double k : full) {
+    if (!knots.empty() && k == knots.back()) {
+      ++mults.back();
+    } else {
+      knots.push_back(k);
+      mults.push_back(1);
+    }
+  }
+  const int n = static_cast<int>(knots.size());
+  KnotsAndMults out{TColStd_Array1OfReal(1, n), TColStd_Array1OfInteger(1, n)};
+  for (int i = 0; i < n; ++i) {
+    out.knots(i + 1) = knots[static_cast<std::size_t>(i)];
+    out.mults(i + 1) = mults[static_cast<std::size_t>(i)];
+  }
+  return out;
+}
+
+Handle(Geom_BSplineSurface) to_occt(const BSplineSurface& s) {
+  const KnotsAndMults u = distinct_knots(s.knots_u);
+  const KnotsAndMults v = distinct_knots(s.knots_v);
+  TColgp_Array2OfPnt poles(1, s.num_poles_u, 1, s.num_poles_v);
+  for (int i = 0; i < s.num_poles_u; ++i) {
+    for (int j = 0; j < s.num_poles_v; ++j) {
+      const Eigen::Vector3d& p = s.pole(i, j);
+      poles(i + 1, j + 1) = gp_Pnt(p.x(), p.y(), p.z());
+    }
+  }
+  if (!s.rational()) {
+    return new Geom_BSplineSurface(poles, u.knots, v.knots, u.mults, v.mults, s.degree_u, s.degree_v);
+  }
+  TColStd_Array2OfReal weights(1, s.num_poles_u, 1, s.num_poles_v);
+  for (int i = 0; i < s.num_poles_u; ++i) {
+    for (int j = 0; j < s.num_poles_v; ++j) {
+      weights(i + 1, j + 1) = s.weights[static_cast<std::size_t>(i) * s.num_poles_v + j];
+    }
+  }
+  return new Geom_BSplineSurface(poles, weights, u.knots, v.knots, u.mults, v.mults, s.degree_u,
+                                 s.degree_v);
+}
+
+std::vector<double> full_knots(const TColStd_Array1OfReal& knots, const TColStd_Array1OfInteger& mults) {
+  std::vector<double> full;
+  for (int i = knots.Lower(); i <= knots.Upper(); ++i) full.insert(full.end(), mults(i), knots(i));
+  return full;
+}
+
+BSplineSurface from_occt(Handle(Geom_BSplineSurface) g) {
+  if (g->IsUPeriodic() || g->IsVPeriodic()) {
+    // Periodic knots and poles are stored folded; unfold them into the ordinary form.
+    g = Handle(Geom_BSplineSurface)::DownCast(g->Copy());
+    if (g->IsUPeriodic()) g->SetUNotPeriodic();
+    if (g->IsVPeriodic()) g->SetVNotPeriodic();
+  }
+  BSplineSurface s;
+  s.degree_u = g->UDegree();
+  s.degree_v = g->VDegree();
+  s.num_poles_u = g->NbUPoles();
+  s.num_poles_v = g->NbVPoles();
+  TColStd_Array1OfReal uk(1, g->NbUKnots()), vk(1, g->NbVKnots());
+  TColStd_Array1OfInteger um(1, g->NbUKnots()), vm(1, g->NbVKnots());
+  g->UKnots(uk);
+  g->VKnots(vk);
+  g->UMultiplicities(um);
+  g->VMultiplicities(vm);
+  s.knots_u = full_knots(uk, um);
+  s.knots_v = full_knots(vk, vm);
+  const bool rational = g->IsURational() || g->IsVRational();
+  for (int i = 1; i <= s.num_poles_u; ++i) {
+    for (int j = 1; j <= s.num_poles_v; ++j) {
+      const gp_Pnt p = g->Pole(i, j);
+      s.poles_mm.emplace_back(p.X(), p.Y(), p.Z());
+      if (rational) s.weights.push_back(g->Weight(i, j));
+    }
+  }
+  return s;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Writing
+
+void check_writable(const BSplineSurface& s, const std::string& path) {
+  validate_surface(s, path);
+  auto fail = [&](const std::string& why) { throw InputError(path, 0, "cannot write the surface: " + why); };
+  auto too_big = [](double x) { return std::abs(x) > kMaxWritableMagnitude; };
+  if (std::any_of(s.knots_u.begin(), s.knots_u.end(), too_big) ||
+      std::any_of(s.knots_v.begin(), s.knots_v.end(), too_big) ||
+      std::any_of(s.weights.begin(), s.weights.end(), too_big) ||
+      std::any_of(s.poles_mm.begin(), s.poles_mm.end(),
+                  [](const Eigen::Vector3d& p) { return p.cwiseAbs().maxCoeff() > kMaxWritableMagnitude; })) {
+    fail("a knot, pole or weight exceeds 1e99 in magnitude");
+  }
+  const double u0 = s.knots_u[static_cast<std::size_t>(s.degree_u)];
+  const double u1 = s.knots_u[static_cast<std::size_t>(s.num_poles_u)];
+  const double v0 = s.knots_v[static_cast<std::size_t>(s.degree_v)];
+  const double v1 = s.knots_v[static_cast<std::size_t>(s.num_poles_v)];
+  for (std::size_t k = 0; k < s.boundary_uv.size(); ++k) {
+    const Eigen::Vector2d& a = s.boundary_uv[k];
+    if (a.x() < u0 || a.x() > u1 || a.y() < v0 || a.y() > v1) {
+      fail("boundary vertex " + std::to_string(k) + " lies outside the parameter domain");
+    }
+    if (a == s.boundary_uv[(k + 1) % s.boundary_uv.size()]) {
+      fail("boundary vertex " + std::to_string(k) + " repeats the next one");
+    }
+  }
+}
+
+// The face of `g`: its whole domain, or the region inside `boundary` (straight edges in (u,v)).
+TopoDS_Face make_face(const Handle(Geom_BSplineSurface)& g, const std::vector<Eigen::Vector2d>& boundary,
+                      const std::string& path) {
+  auto fail = [&](const char* what) { throw InputError(path, 0, std::string("cannot build the face: ") + what); };
+  if (boundary.empty()) {
+    BRepBuilderAPI_MakeFace face(g, Precision::Confusion());
+    if (!face.IsDone()) fail("Open CASCADE refuses the surface");
+    return face.Face();
+  }
+  std::vector<TopoDS_Vertex> vertices;
+  for (const Eigen::Vector2d& uv : boundary) {
+    vertices.push_back(BRepBuilderAPI_MakeVertex(g->Value(uv.x(), uv.y())).Vertex());
+  }
+  BRepBuilderAPI_MakeWire wire;
+  for (std::size_t k = 0; k < boundary.size(); ++k) {
+    const std::size_t next = (k + 1) % boundary.size();
+    const Eigen::Vector2d d = boundary[next] - boundary[k];
+    Handle(Geom2d_Line) line =
+        new Geom2d_Line(gp_Pnt2d(boundary[k].x(), boundary[k].y()), gp_Dir2d(d.x(), d.y()));
+    BRepBuilderAPI_MakeEdge edge(line, g, vertices[k], vertices[next], 0.0, d.norm());
+    if (!edge.IsDone()) fail("a boundary edge is degenerate");
+    wire.Add(edge.Edge());
+    if (!wire.IsDone()) fail("the boundary edges do not form a wire");
+  }
+  const TopoDS_Wire w = wire.Wire();
+  BRepLib::BuildCurves3d(w);  // STEP and IGES carry the 3D edge curves as well as the pcurves
+  BRepBuilderAPI_MakeFace face(g, w, Standard_True);
+  if (!face.IsDone()) fail("Open CASCADE refuses the boundary");
+  return face.Face();
+}
+
+std::ofstream open_output(const std::string& path) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) throw InputError(path, 0, std::string("cannot create file: ") + std::strerror(errno));
+  return out;
+}
+
+void close_output(std::ofstream& out, bool printed, const std::string& path) {
+  out.close();
+  if (!printed || !out) throw InputError(path, 0, "write failed");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reading
+
+enum class CadKind { Step, Iges };
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return s;
+}
+
+// The first KiB of an existing, non-empty, readable file.
+std::string file_head(const std::string& path) {
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (!std::filesystem::exists(status)) throw InputError(path, 0, "cannot open: no such file");
+  if (std::filesystem::is_directory(status)) throw InputError(path, 0, "cannot read: is a directory");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, 0, std::string("cannot open: ") + std::strerror(errno));
+  std::string head(1024, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(in.gcount()));
+  if (head.empty()) throw InputError(path, 0, "empty file");
+  return head;
+}
+
+// ISO 10303-21: the file opens with "ISO-10303-21;" (tolerated: a UTF-8 BOM, blank space).
+bool looks_like_step(std::string_view head) {
+  if (head.substr(0, 3) == "\xEF\xBB\xBF") head.remove_prefix(3);
+  while (!head.empty() && std::isspace(static_cast<unsigned char>(head.front()))) head.remove_prefix(1);
+  return head.substr(0, 12) == "ISO-10303-21";
+}
+
+// Fixed 80-column records; column 73 of the first names its section: Start, Global, or C for
+// the compressed form.
+bool looks_like_iges(std::string_view head) {
+  const std::string_view line = head.substr(0, head.find('\n'));
+  return line.size() >= 73 && (line[72] == 'S' || line[72] == 'G' || line[72] == 'C');
+}
+
+void check_kind(const std::string& path, CadKind kind) {
+  const std::string head = file_head(path);
+  if (kind == CadKind::Step && !looks_like_step(head)) {
+    throw InputError(path, 0, "not a STEP file: it does not begin with ISO-10303-21");
+  }
+  if (kind == CadKind::Iges && !looks_like_iges(head)) {
+    throw InputError(path, 0, "not an IGES file: its first line is not an 80-column Start or Global record");
+  }
+}
+
+Handle(Geom_BSplineSurface) as_bspline(Handle(Geom_Surface) surface) {
+  if (auto trimmed = Handle(Geom_RectangularTrimmedSurface)::DownCast(surface); !trimmed.IsNull()) {
+    surface = trimmed->BasisSurface();
+  }
+  return Handle(Geom_BSplineSurface)::DownCast(surface);
+}
+
+// Parameters at which the pcurve of an edge has corners, from `first` to `last` inclusive:
+// the ends of a line, also the interior knots of a degree-1 B-spline, and evenly spaced samples
+// of anything curved.
+std::vector<double> corner_parameters(const Handle(Geom2d_Curve)& pcurve, double first, double last) {
+  Handle(Geom2d_Curve) c = pcurve;
+  if (auto trimmed = Handle(Geom2d_TrimmedCurve)::DownCast(c); !trimmed.IsNull()) c = trimmed->BasisCurve();
+  const auto bspline = Handle(Geom2d_BSplineCurve)::DownCast(c);
+  const auto bezier = Handle(Geom2d_BezierCurve)::DownCast(c);
+  const bool polyline = !Handle(Geom2d_Line)::DownCast(c).IsNull() ||
+                        (!bspline.IsNull() && bspline->Degree() == 1) ||
+                        (!bezier.IsNull() && bezier->Degree() == 1);
+  std::vector<double> ts{first};
+  if (!polyline) {
+    for (int k = 1; k < kSamplesPerCurvedEdge; ++k) ts.push_back(first + (last - first) * k / kSamplesPerCurvedEdge);
+  } else if (!bspline.IsNull()) {
+    for (int i = 1; i <= bspline->NbKnots(); ++i) {
+      if (bspline->Knot(i) > first && bspline->Knot(i) < last) ts.push_back(bspline->Knot(i));
+    }
+  }
+  ts.push_back(last);
+  return ts;
+}
+
+double signed_area(const std::vector<Eigen::Vector2d>& polygon) {
+  double twice = 0;
+  for (std::size_t k = 0; k < polygon.size(); ++k) {
+    const Eigen::Vector2d& a = polygon[k];
+    const Eigen::Vector2d& b = polygon[(k + 1) % polygon.size()];
+    twice += a.x() * b.y() - b.x() * a.y();
+  }
+  return twice / 2;
+}
+
+// The outer wire of `face` as a counter-clockwise polygon in the (u,v) of `g`; empty when it is
+// the whole parameter rectangle of `g` or cannot be followed.
+std::vector<Eigen::Vector2d> outer_boundary(const TopoDS_Face& face, const Geom_BSplineSurface& g) {
+  const TopoDS_Wire wire = BRepTools::OuterWire(face);
+  if (wire.IsNull()) return {};
+  std::vector<Eigen::Vector2d> polygon;
+  for (BRepTools_WireExplorer it(wire, face); it.More(); it.Next()) {
+    const TopoDS_Edge& edge = it.Current();
+    double first = 0, last = 0;
+    const Handle(Geom2d_Curve) pcurve = BRep_Tool::CurveOnSurface(edge, face, first, last);
+    if (pcurve.IsNull()) return {};
+    std::vector<double> ts = corner_parameters(pcurve, first, last);
+    if (edge.Orientation() == TopAbs_REVERSED) std::reverse(ts.begin(), ts.end());
+    ts.pop_back();  // the next edge starts there
+    for (double t : ts) {
+      const gp_Pnt2d uv = pcurve->Value(t);
+      polygon.emplace_back(uv.X(), uv.Y());
+    }
+  }
+  double u0 = 0, u1 = 0, v0 = 0, v1 = 0;
+  g.Bounds(u0, u1, v0, v1);
+  const double tolerance = 1e-9 * std::max(u1 - u0, v1 - v0);
+  std::vector<Eigen::Vector2d> simple;  // without repeated vertices (seams, degenerate edges)
+  for (const Eigen::Vector2d& p : polygon) {
+    if (simple.empty() || (p - simple.back()).norm() > tolerance) simple.push_back(p);
+  }
+  while (simple.size() > 1 && (simple.front() - simple.back()).norm() <= tolerance) simple.pop_back();
+  if (simple.size() < 3) return {};
+  double area = signed_area(simple);
+  if (area < 0) {
+    std::reverse(simple.begin(), simple.end());
+    area = -area;
+  }
+  // Inside the rectangle with the rectangle's area: it is the rectangle.
+  const bool inside = std::all_of(simple.begin(), simple.end(), [&](const Eigen::Vector2d& p) {
+    return p.x() >= u0 - tolerance && p.x() <= u1 + tolerance && p.y() >= v0 - tolerance && p.y() <= v1 + tolerance;
+  });
+  const double domain_area = (u1 - u0) * (v1 - v0);
+  if (inside && std::abs(area - domain_area) <= 1e-9 * domain_area) return {};
+  return simple;
+}
+
+std::vector<BSplineSurface> faces_of(const TopoDS_Shape& shape, const std::string& path) {
+  std::vector<BSplineSurface> surfaces;
+  for (TopExp_Explorer it(shape, TopAbs_FACE); it.More(); it.Next()) {
+    TopoDS_Face face = TopoDS::Face(it.Current());
+    // BRep_Tool::Surface without a location argument applies the face's placement.
+    Handle(Geom_BSplineSurface) g = as_bspline(BRep_Tool::Surface(face));
+    if (g.IsNull()) {
+      BRepBuilderAPI_NurbsConvert converted(face, Standard_True);
+      face = TopoDS::Face(converted.Shape());
+      g = as_bspline(BRep_Tool::Surface(face));
+    }
+    const std::string which = "face " + std::to_string(surfaces.size() + 1);
+    if (g.IsNull()) throw InputError(path, 0, which + ": cannot convert its surface to a B-spline");
+    BSplineSurface s = from_occt(g);
+    s.boundary_uv = outer_boundary(face, *g);
+    validate_surface(s, path + " (" + which + ")");
+    surfaces.push_back(std::move(s));
+  }
+  if (surfaces.empty()) throw InputError(path, 0, "no faces: the file holds no surface geometry");
+  return surfaces;
+}
+
+// ": <the reader's first complaint>", or the reader's status when it said nothing.
+std::string why(IFSelect_ReturnStatus status) {
+  const std::string& problem = occt_printer().problem();
+  if (!problem.empty()) return ": " + problem;
+  switch (status) {
+    case IFSelect_RetVoid: return ": nothing to read";
+    case IFSelect_RetError: return ": error";
+    case IFSelect_RetFail: return ": failure";
+    default: return "";
+  }
+}
+
+}  // namespace
+
+void write_step(const BSplineSurface& surface, const std::string& path) {
+  check_writable(surface, path);
+  guarded(path, "write STEP", [&] {
+    const TopoDS_Face face = make_face(to_occt(surface), surface.boundary_uv, path);
+    STEPControl_Writer writer;
+    if (writer.Transfer(face, STEPControl_AsIs) != IFSelect_RetDone) {
+      throw InputError(path, 0, "Open CASCADE could not translate the face to STEP");
+    }
+    // What STEPControl_Writer::Write does (StepSelect_WorkLibrary::WriteFile), with exact reals.
+    StepData_StepWriter sw(writer.Model());
+    use_exact_reals(sw.FloatWriter());
+    sw.SendModel(Handle(StepData_Protocol)::DownCast(writer.WS()->Protocol()));
+    std::ofstream out = open_output(path);
+    const bool printed = sw.Print(out);
+    close_output(out, printed, path);
+  });
+}
+
+void write_iges(const BSplineSurface& surface, const std::string& path) {
+  check_writable(surface, path);
+  guarded(path, "write IGES", [&] {
+    const TopoDS_Face face = make_face(to_occt(surface), surface.boundary_uv, path);
+    IGESControl_Writer writer("MM", 0);
+    if (!writer.AddShape(face)) throw InputError(path, 0, "Open CASCADE could not translate the face to IGES");
+    writer.ComputeModel();
+    // What IGESControl_Writer::Write does, with exact reals.
+    IGESData_IGESWriter iw(writer.Model());
+    use_exact_reals(iw.FloatWriter());
+    iw.SendModel(IGESSelect_WorkLibrary::DefineProtocol());
+    std::ofstream out = open_output(path);
+    const bool printed = iw.Print(out);
+    close_output(out, printed, path);
+  });
+}
+
+std::vector<BSplineSurface> read_step(const std::string& path) {
+  check_kind(path, CadKind::Step);
+  return guarded(path, "read STEP", [&] {
+    STEPControl_Reader reader;
+    const IFSelect_ReturnStatus status = reader.ReadFile(path.c_str());
+    if (status != IFSelect_RetDone) throw InputError(path, 0, "not a readable STEP file" + why(status));
+    reader.TransferRoots();
+    return faces_of(reader.OneShape(), path);
+  });
+}
+
+std::vector<BSplineSurface> read_iges(const std::string& path) {
+  check_kind(path, CadKind::Iges);
+  return guarded(path, "read IGES", [&] {
+    IGESControl_Reader reader;
+    const IFSelect_ReturnStatus status = reader.ReadFile(path.c_str());
+    if (status != IFSelect_RetDone) throw InputError(path, 0, "not a readable IGES file" + why(status));
+    reader.TransferRoots();
+    return faces_of(reader.OneShape(), path);
+  });
+}
+
+std::vector<BSplineSurface> read_cad(const std::string& path) {
+  const std::string ext = lower(std::filesystem::path(path).extension().string());
+  if (ext == ".step" || ext == ".stp" || ext == ".p21") return read_step(path);
+  if (ext == ".iges" || ext == ".igs") return read_iges(path);
+  const std::string head = file_head(path);
+  if (looks_like_step(head)) return read_step(path);
+  if (looks_like_iges(head)) return read_iges(path);
+  throw InputError(path, 0, "neither a STEP nor an IGES file");
+}
+
+}  // namespace photomill

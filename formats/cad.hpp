@@ -1,0 +1,35 @@
+// STEP (AP214) and IGES (5.3) import/export of B-spline faces through Open CASCADE 7.6.
+// Lengths are millimetres in both directions; knots, poles and weights are carried exactly
+// (written with 17 significant digits). Open CASCADE never prints to stdout from these calls.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "formats/surface.hpp"
+
+namespace photomill {
+
+// Writes `surface` as one face: trimmed by its boundary polygon (straight edges in (u,v)) when
+// boundary_uv is set, else bounded by its whole parameter domain. The file says millimetres.
+// Throws InputError(path, 0, ...) when the surface is invalid (validate_surface), when a
+// boundary vertex lies outside the domain or a value is beyond +-1e99, when Open CASCADE
+// rejects the geometry, or when the file cannot be written.
+void write_step(const BSplineSurface& surface, const std::string& path);
+void write_iges(const BSplineSurface& surface, const std::string& path);
+
+// Reads every face of the file, in file order, as a B-spline surface in mm (the file's unit is
+// converted). Faces on other surfaces (planes, cylinders, Bezier, offsets...) are converted to
+// NURBS by Open CASCADE, exactly where the geometry allows. boundary_uv is the face's outer
+// wire in (u,v) - its vertices where edges are straight in (u,v), 32 samples per curved edge -
+// and stays empty when that wire is the whole parameter rectangle; holes are dropped.
+// Weights that are all equal come back as a non-rational surface (Open CASCADE's convention).
+// Throws InputError(path, 0, reason) for a missing, empty or unreadable file, a file of the
+// wrong kind, a file without faces, and any Open CASCADE failure.
+std::vector<BSplineSurface> read_step(const std::string& path);
+std::vector<BSplineSurface> read_iges(const std::string& path);
+// read_step or read_iges, chosen by extension (.step .stp .p21 / .iges .igs, any case), else by
+// the first line (ISO-10303-21 for STEP, an 80-column line with 'S' or 'G' in column 73 for IGES).
+std::vector<BSplineSurface> read_cad(const std::string& path);
+
+}  // namespace photomill
