@@ -4,7 +4,7 @@
 set -euo pipefail
 
 packages=(
-  build-essential cmake pkg-config python3
+  build-essential cmake pkg-config python3 clang libclang-rt-14-dev
   libopencv-dev libopencv-contrib-dev
   libeigen3-dev libcli11-dev libgtest-dev libgmock-dev
   libceres-dev

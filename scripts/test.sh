@@ -1,16 +1,34 @@
 #!/usr/bin/env bash
-# Installs the dependencies (Debian 12), builds photomill in build/ and runs the whole test suite.
-# This is the README's test command, and what CI (.ci/run) calls.
+# Installs the dependencies (Debian 12), builds photomill and runs the whole test suite.
+#   scripts/test.sh              Release build in build/ (the README's test command)
+#   scripts/test.sh --sanitize   the same suite built with ASan + UBSan in build-asan/
+# CI (.ci/run) runs both.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+mode=release
+if [ "${1:-}" = "--sanitize" ]; then mode=sanitize; fi
+
 bash scripts/install-deps.sh
 
-build=${PHOTOMILL_BUILD_DIR:-build}
 jobs=${PHOTOMILL_JOBS:-$(nproc)}
 werror=OFF
 if [ "${CI:-}" = "true" ]; then werror=ON; fi
 
-cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DPHOTOMILL_WERROR="$werror" >&2
+if [ $mode = sanitize ]; then
+  build=${PHOTOMILL_BUILD_DIR:-build-asan}
+  extra=(-DCMAKE_BUILD_TYPE=RelWithDebInfo -DPHOTOMILL_SANITIZE=ON)
+  export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:strict_string_checks=1}
+  export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$PWD/tests/lsan.supp:print_suppressions=0}
+  export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
+else
+  build=${PHOTOMILL_BUILD_DIR:-build}
+  extra=(-DCMAKE_BUILD_TYPE=Release)
+fi
+
+start=$(date +%s)
+cmake -S . -B "$build" "${extra[@]}" -DPHOTOMILL_WERROR="$werror" >&2
 cmake --build "$build" -j"$jobs"
-ctest --test-dir "$build" -j"$jobs" --output-on-failure --timeout 600
+built=$(date +%s)
+ctest --test-dir "$build" -j"$jobs" --output-on-failure --timeout 900
+echo "test.sh ($mode): build $((built - start)) s, tests $(( $(date +%s) - built )) s" >&2

@@ -1,0 +1,2 @@
+PARTNO/x
+CIRCLE/1,2,3

@@ -1,0 +1,87 @@
+#include "tests/fuzz/targets.hpp"
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include <unistd.h>
+
+#include "formats/cad.hpp"
+#include "formats/camera.hpp"
+#include "formats/cl_data.hpp"
+#include "formats/features.hpp"
+#include "formats/point_cloud.hpp"
+#include "formats/surface.hpp"
+#include "formats/tables.hpp"
+
+namespace photomill::fuzz {
+namespace {
+
+template <auto Reader>
+void from_stream(const std::string& data) {
+  std::istringstream in(data);
+  Reader(in, "fuzz");
+}
+
+// Open CASCADE reads by path: write the bytes to a private temporary file first.
+template <auto Reader>
+void from_file(const std::string& data, const char* ext) {
+  char name[] = "/tmp/photomill-fuzz-XXXXXX";
+  const int fd = ::mkstemp(name);
+  if (fd < 0) return;
+  ::close(fd);
+  const std::string path = std::string(name) + ext;
+  std::rename(name, path.c_str());
+  {
+    std::ofstream f(path, std::ios::binary);
+    f << data;
+  }
+  struct Remove {
+    std::string p;
+    ~Remove() { std::remove(p.c_str()); }
+  } cleanup{path};
+  Reader(path);
+}
+
+void observations(const std::string& d) { from_stream<read_observations>(d); }
+void control_points(const std::string& d) { from_stream<read_control_points>(d); }
+void tracks(const std::string& d) { from_stream<read_tracks>(d); }
+void poses(const std::string& d) { from_stream<read_poses>(d); }
+void scale_bars(const std::string& d) { from_stream<read_scale_bars>(d); }
+void point_cloud(const std::string& d) {
+  std::istringstream in(d);
+  read_point_cloud(in, "fuzz");
+}
+void surface(const std::string& d) { from_stream<read_surface>(d); }
+void cl_data(const std::string& d) { from_stream<read_cl>(d); }
+void camera_yaml(const std::string& d) {
+  std::istringstream in(d);
+  read_camera_yaml(in, "fuzz");
+}
+void features(const std::string& d) {
+  std::istringstream in(d);
+  read_features(in, "fuzz");
+}
+void step(const std::string& d) { from_file<read_step>(d, ".step"); }
+void iges(const std::string& d) { from_file<read_iges>(d, ".igs"); }
+
+}  // namespace
+
+const std::vector<Target>& targets() {
+  static const std::vector<Target> all{
+      {"observations", observations}, {"control_points", control_points}, {"tracks", tracks},
+      {"poses", poses},               {"scale_bars", scale_bars},         {"point_cloud", point_cloud},
+      {"surface", surface},           {"cl_data", cl_data},               {"camera_yaml", camera_yaml},
+      {"features", features},         {"step", step},                     {"iges", iges},
+  };
+  return all;
+}
+
+const Target* find_target(std::string_view name) {
+  for (const auto& t : targets()) {
+    if (name == t.name) return &t;
+  }
+  return nullptr;
+}
+
+}  // namespace photomill::fuzz
