@@ -1,7 +1,7 @@
 #include "formats/camera.hpp"
 
 #include <cmath>
-#include <regex>
+#include <cctype>
 #include <sstream>
 
 #include <opencv2/core.hpp>
@@ -17,13 +17,25 @@ namespace {
 constexpr long kMaxDeclaredDim = 64;
 
 void check_declared_sizes(const std::string& text, const std::string& source) {
-  static const std::regex dim(R"((rows|cols)\s*:\s*(-?\d+))");
-  for (auto it = std::sregex_iterator(text.begin(), text.end(), dim); it != std::sregex_iterator(); ++it) {
-    const std::string digits = (*it)[2].str();
-    const long value = digits.size() > 9 ? kMaxDeclaredDim + 1 : std::stol(digits);
-    if (value < 0 || value > kMaxDeclaredDim) {
-      throw InputError(source, 0, "matrix declares " + (*it)[1].str() + ": " + digits +
-                                      ", not a camera file");
+  // Every "rows:" or "cols:" followed by an integer, wherever it is (a hostile file need not be
+  // well-formed YAML for FileStorage to start allocating).
+  for (const char* key : {"rows", "cols"}) {
+    for (std::size_t pos = text.find(key); pos != std::string::npos; pos = text.find(key, pos + 4)) {
+      std::size_t i = pos + 4;
+      while (i < text.size() && (text[i] == ' ' || text[i] == '\t')) ++i;
+      if (i >= text.size() || text[i] != ':') continue;
+      ++i;
+      while (i < text.size() && (text[i] == ' ' || text[i] == '\t')) ++i;
+      const std::size_t start = i;
+      if (i < text.size() && text[i] == '-') ++i;
+      while (i < text.size() && std::isdigit(static_cast<unsigned char>(text[i]))) ++i;
+      const std::string digits = text.substr(start, i - start);
+      if (digits.empty() || digits == "-") continue;
+      const bool too_long = digits.size() > 9;
+      const long value = too_long ? kMaxDeclaredDim + 1 : std::stol(digits);
+      if (value < 0 || value > kMaxDeclaredDim) {
+        throw InputError(source, 0, "matrix declares " + std::string(key) + ": " + digits + ", not a camera file");
+      }
     }
   }
 }
