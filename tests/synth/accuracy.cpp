@@ -1,0 +1,334 @@
+// synth_accuracy: runs photomill's pipeline on a synth scene and compares every stage with the
+// truth, one line per figure on stdout ("name: value unit (bound B) ok|FAIL" or
+// "name: not yet available (why)"). Exit 0 when every available figure is within its bound,
+// 1 when one is not or a built stage fails, 2 for bad usage.
+// Stage command lines live in kStages: when a stage lands, its owner updates its entry.
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <iostream>
+#include <map>
+#include <optional>
+#include <sstream>
+
+#include "formats/camera.hpp"
+#include "formats/error.hpp"
+#include "formats/text.hpp"
+#include "formats/cl_data.hpp"
+#include "formats/log.hpp"
+#include "formats/point_cloud.hpp"
+#include "formats/surface.hpp"
+#include "formats/tables.hpp"
+#include "formats/tool.hpp"
+#include "tests/run_tool.hpp"
+#include "tests/synth/dataset.hpp"
+
+namespace fs = std::filesystem;
+using namespace photomill;
+
+namespace {
+
+// One pipeline stage: the executable and its arguments; "{set}" is the synth folder, "{work}"
+// the folder for the pipeline's outputs. Each stage reads earlier outputs and writes its own.
+struct Stage {
+  std::string tool;
+  std::vector<std::string> args;
+  std::vector<std::string> needs;  // earlier stages whose outputs it reads
+};
+
+const std::map<std::string, Stage>& stages() {
+  static const std::map<std::string, Stage> s = {
+      {"detect-board",
+       {"detect",
+        {"{set}/board_*.jpg", "--charuco", "7x5", "--square-mm", "30", "--marker-mm", "22", "--dict", "DICT_5X5_100", "-o",
+         "{work}/board_observations.csv"},
+        {}}},
+      {"calib",
+       {"calib", {"{work}/board_observations.csv", "--charuco", "7x5", "--square-mm", "30", "-o", "{work}/camera.yaml"},
+        {"detect-board"}}},
+      {"detect", {"detect", {"{set}/part_*.jpg", "-o", "{work}/observations.csv"}, {}}},
+      {"match", {"match", {"{work}/observations.csv", "-o", "{work}/tracks.csv"}, {"detect"}}},
+      {"triangulate",
+       {"triangulate",
+        {"{work}/tracks.csv", "--camera", "{work}/camera.yaml", "--control-points", "{set}/control_points.csv",
+         "--points-out", "{work}/marker_points.csv", "-o", "{work}/cloud.ply"},
+        {"calib", "match"}}},
+      {"fitsurf", {"fitsurf", {"{work}/cloud.ply", "-o", "{work}/surface.txt"}, {"triangulate"}}},
+      {"toolpath", {"toolpath", {"{work}/surface.txt", "--tool-diameter-mm", "6", "-o", "{work}/path.cl"}, {"fitsurf"}}},
+  };
+  return s;
+}
+
+// Bounds the small scene must meet once a stage is built.
+struct Bounds {
+  double focal_percent = 0.2, principal_point_px = 2.0;
+  double marker_rms_mm = 0.1, marker_max_mm = 0.3;
+  double surface_rms_mm = 0.1, surface_max_mm = 0.5;
+  double gouge_mm = 0.05, excess_mm = 0.5;
+};
+
+std::string expand(std::string s, const fs::path& set, const fs::path& work) {
+  for (auto [key, value] : {std::pair<std::string, std::string>{"{set}", set.string()}, {"{work}", work.string()}}) {
+    for (auto at = s.find(key); at != std::string::npos; at = s.find(key)) s.replace(at, key.size(), value);
+  }
+  return s;
+}
+
+// Glob "dir/prefix*.ext" without a shell.
+std::vector<std::string> expand_glob(const std::string& pattern) {
+  const auto star = pattern.find('*');
+  if (star == std::string::npos) return {pattern};
+  const fs::path p(pattern);
+  const std::string name = p.filename().string();
+  const auto s = name.find('*');
+  const std::string head = name.substr(0, s), tail = name.substr(s + 1);
+  std::vector<std::string> out;
+  for (const auto& e : fs::directory_iterator(p.parent_path())) {
+    const std::string f = e.path().filename().string();
+    if (f.size() >= head.size() + tail.size() && f.compare(0, head.size(), head) == 0 &&
+        f.compare(f.size() - tail.size(), tail.size(), tail) == 0) {
+      out.push_back(e.path().string());
+    }
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+struct Report {
+  bool failed = false;
+  void line(const std::string& name, double value, const std::string& unit, double bound) {
+    const bool ok = std::isfinite(value) && value <= bound;
+    failed = failed || !ok;
+    std::cout << name << ": " << format_double(value) << " " << unit << " (bound " << format_double(bound) << ") "
+              << (ok ? "ok" : "FAIL") << "\n";
+  }
+  void missing(const std::string& name, const std::string& why) {
+    std::cout << name << ": not yet available (" << why << ")\n";
+  }
+};
+
+template <typename T, typename Reader>
+T read(const fs::path& path, Reader reader) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path.string(), 0, "missing output");
+  return reader(in, path.string());
+}
+
+// --- B-spline surface point (The NURBS Book A2.1 FindSpan, A2.2 BasisFuns, A3.5 / A4.3) -----
+int find_span(int n, int p, double u, const std::vector<double>& U) {
+  if (u >= U[n + 1]) return n;
+  if (u <= U[p]) return p;
+  int low = p, high = n + 1, mid = (low + high) / 2;
+  while (u < U[mid] || u >= U[mid + 1]) {
+    (u < U[mid] ? high : low) = mid;
+    mid = (low + high) / 2;
+  }
+  return mid;
+}
+
+std::vector<double> basis(int i, double u, int p, const std::vector<double>& U) {
+  std::vector<double> N(p + 1), left(p + 1), right(p + 1);
+  N[0] = 1;
+  for (int j = 1; j <= p; ++j) {
+    left[j] = u - U[i + 1 - j];
+    right[j] = U[i + j] - u;
+    double saved = 0;
+    for (int r = 0; r < j; ++r) {
+      const double temp = N[r] / (right[r + 1] + left[j - r]);
+      N[r] = saved + right[r + 1] * temp;
+      saved = left[j - r] * temp;
+    }
+    N[j] = saved;
+  }
+  return N;
+}
+
+Eigen::Vector3d surface_point(const BSplineSurface& s, double u, double v) {
+  const int p = s.degree_u, q = s.degree_v;
+  const int su = find_span(s.num_poles_u - 1, p, u, s.knots_u), sv = find_span(s.num_poles_v - 1, q, v, s.knots_v);
+  const auto Nu = basis(su, u, p, s.knots_u), Nv = basis(sv, v, q, s.knots_v);
+  Eigen::Vector4d sum = Eigen::Vector4d::Zero();
+  for (int k = 0; k <= p; ++k) {
+    for (int l = 0; l <= q; ++l) {
+      const int i = su - p + k, j = sv - q + l;
+      const double w = s.rational() ? s.weights[static_cast<std::size_t>(i) * s.num_poles_v + j] : 1.0;
+      sum += Nu[k] * Nv[l] * w * s.pole(i, j).homogeneous();
+    }
+  }
+  return sum.head<3>() / sum.w();
+}
+
+// --- the figures -------------------------------------------------------------------------------
+void calibration_figures(Report& r, const Camera& truth, const Camera& got, const Bounds& b) {
+  const double focal = 100 * std::max(std::abs(got.fx() / truth.fx() - 1), std::abs(got.fy() / truth.fy() - 1));
+  r.line("calibration focal length error", focal, "%", b.focal_percent);
+  r.line("calibration principal point error", std::hypot(got.cx() - truth.cx(), got.cy() - truth.cy()), "px",
+         b.principal_point_px);
+}
+
+void marker_figures(Report& r, const std::map<PointId, Eigen::Vector3d>& truth, const std::vector<ControlPoint>& got,
+                    const Bounds& b) {
+  double sum = 0, max = 0;
+  std::size_t n = 0;
+  for (const ControlPoint& p : got) {
+    const auto it = truth.find(p.point_id);
+    if (it == truth.end()) continue;
+    const double e = (p.xyz_mm - it->second).norm();
+    sum += e * e;
+    max = std::max(max, e);
+    ++n;
+  }
+  r.line("marker corner 3D error RMS", n ? std::sqrt(sum / n) : NAN, "mm", b.marker_rms_mm);
+  r.line("marker corner 3D error max", n ? max : NAN, "mm", b.marker_max_mm);
+}
+
+// Vertical deviation of the fitted surface from the true one, over the part inside the edge blend.
+void surface_figures(Report& r, const synth::HeightField& h, const BSplineSurface& s, const Bounds& b) {
+  const double u0 = s.knots_u[s.degree_u], u1 = s.knots_u[s.num_poles_u];
+  const double v0 = s.knots_v[s.degree_v], v1 = s.knots_v[s.num_poles_v];
+  double sum = 0, max = 0;
+  std::size_t n = 0;
+  for (int i = 0; i <= 100; ++i) {
+    for (int j = 0; j <= 100; ++j) {
+      const Eigen::Vector3d p = surface_point(s, u0 + (u1 - u0) * i / 100, v0 + (v1 - v0) * j / 100);
+      if (p.x() < h.x_min_mm + h.edge_blend_mm || p.x() > h.x_max_mm - h.edge_blend_mm ||
+          p.y() < h.y_min_mm + h.edge_blend_mm || p.y() > h.y_max_mm - h.edge_blend_mm) {
+        continue;
+      }
+      const double e = std::abs(p.z() - h.height_mm(p.x(), p.y()));
+      sum += e * e;
+      max = std::max(max, e);
+      ++n;
+    }
+  }
+  r.line("surface deviation RMS", n ? std::sqrt(sum / n) : NAN, "mm", b.surface_rms_mm);
+  r.line("surface deviation max", n ? max : NAN, "mm", b.surface_max_mm);
+}
+
+// For each feed move the ball centre is tip + R axis; its distance d to the true surface (grid
+// search around it) gives gouge R - d > 0 and excess material d - R > 0.
+void toolpath_figures(Report& r, const synth::HeightField& h, const ClData& cl, const Bounds& b) {
+  const double R = cl.tool_diameter_mm / 2;
+  double gouge = 0, excess = 0;
+  for (const ClMove& m : cl.moves) {
+    if (m.kind != ClMove::Kind::Feed || !(R > 0)) continue;
+    const Eigen::Vector3d c = m.tip_mm + R * m.axis.value_or(Eigen::Vector3d::UnitZ());
+    if (!h.contains(c.x(), c.y())) continue;
+    double d = INFINITY;
+    for (double dx = -R - 1; dx <= R + 1; dx += 0.1) {
+      for (double dy = -R - 1; dy <= R + 1; dy += 0.1) {
+        const double x = c.x() + dx, y = c.y() + dy;
+        d = std::min(d, (c - Eigen::Vector3d(x, y, h.height_mm(x, y))).norm());
+      }
+    }
+    gouge = std::max(gouge, R - d);
+    excess = std::max(excess, d - R);
+  }
+  r.line("tool path gouge max", gouge, "mm", b.gouge_mm);
+  r.line("tool path excess material max", excess, "mm", b.excess_mm);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string bin_dir = PHOTOMILL_BIN_DIR, work_dir;
+  bool small = false;
+  return tool::run(
+      argc, argv,
+      {"synth_accuracy", "run the pipeline on a synth scene and compare every stage with the truth",
+       "synth_accuracy --small --work-dir /tmp/acc"},
+      [&](CLI::App& app) {
+        app.add_option("--bin-dir", bin_dir, "Folder of the photomill executables")->capture_default_str();
+        app.add_option("--work-dir", work_dir, "Folder for the scene (DIR/set) and the pipeline outputs (DIR/pipeline); both replaced")->required();
+        app.add_flag("--small", small, "A small scene (800x600, 6 + 8 views) for ctest");
+      },
+      [&] {
+        const fs::path work = fs::absolute(work_dir), set = work / "set", out = work / "pipeline";
+        // Only the two subfolders this tool owns are replaced, never the folder given.
+        fs::remove_all(set);
+        fs::remove_all(out);
+        fs::create_directories(out);
+        synth::SynthOptions o;
+        o.camera.image_width_px = small ? 800 : 2000;
+        o.camera.image_height_px = small ? 600 : 1500;
+        const double f = small ? 960 : 2400;
+        o.camera.camera_matrix << f, 0, (o.camera.image_width_px - 1) / 2.0, 0, f, (o.camera.image_height_px - 1) / 2.0,
+            0, 0, 1;
+        o.camera.distortion = {-0.08, 0.06, 0.0004, -0.0003, 0};
+        o.views.count = small ? 6 : 12;
+        o.calibration.count = small ? 8 : 10;
+        o.render.noise_sigma = 1;
+        o.surface_step_mm = 5;
+        o.command_line = "synth_accuracy";
+        synth::write_dataset(o, set.string());
+        const synth::PartScene scene = read<synth::PartScene>(set / "scene.txt", synth::read_scene);
+        const Bounds bounds;
+        Report report;
+
+        std::map<std::string, std::string> unavailable;  // stage -> why
+        for (const std::string name : {"detect-board", "calib", "detect", "match", "triangulate", "fitsurf", "toolpath"}) {
+          const Stage& st = stages().at(name);
+          for (const auto& need : st.needs) {
+            if (unavailable.count(need)) unavailable[name] = unavailable[need];
+          }
+          if (unavailable.count(name)) continue;
+          std::vector<std::string> args;
+          for (const auto& a : st.args) {
+            for (const auto& e : expand_glob(expand(a, set, out))) args.push_back(e);
+          }
+          const fs::path exe = fs::path(bin_dir) / st.tool;
+          if (!fs::exists(exe)) {
+            unavailable[name] = exe.string() + " is not in this build";
+            continue;
+          }
+          const test::ToolResult res = test::run_tool(exe.string(), args);
+          if (res.exit_code != 0) {
+            if (res.err.find("not built yet") != std::string::npos) {
+              unavailable[name] = st.tool + " not built yet";
+            } else if (res.exit_code == 2) {
+              // The stage exists but its command line differs from the one assumed here.
+              const std::string first = res.err.substr(0, res.err.find('\n'));
+              unavailable[name] = st.tool + ": update its command line in tests/synth/accuracy.cpp: " + first;
+            } else {
+              unavailable[name] = name + " failed (exit " + std::to_string(res.exit_code) + ")";
+              std::cerr << "synth_accuracy: " << name << " failed:\n" << res.err;
+              report.failed = true;
+            }
+          }
+        }
+        auto why = [&](const std::string& s) { return unavailable.count(s) ? unavailable[s] : std::string(); };
+        if (!why("calib").empty()) {
+          report.missing("calibration focal length error", why("calib"));
+          report.missing("calibration principal point error", why("calib"));
+        } else {
+          calibration_figures(report, read<Camera>(set / "camera.yaml", [](std::istream& in, const std::string& s) { return read_camera_yaml(in, s); }),
+                              read<Camera>(out / "camera.yaml", [](std::istream& in, const std::string& s) { return read_camera_yaml(in, s); }),
+                              bounds);
+        }
+        if (!why("triangulate").empty()) {
+          report.missing("marker corner 3D error RMS", why("triangulate"));
+          report.missing("marker corner 3D error max", why("triangulate"));
+        } else {
+          std::map<PointId, Eigen::Vector3d> truth;
+          for (const bool part : {false, true}) {
+            for (const ControlPoint& p : synth::marker_corners(scene, part)) truth[p.point_id] = p.xyz_mm;
+          }
+          marker_figures(report, truth, read<std::vector<ControlPoint>>(out / "marker_points.csv", read_control_points), bounds);
+        }
+        if (!why("fitsurf").empty()) {
+          report.missing("surface deviation RMS", why("fitsurf"));
+          report.missing("surface deviation max", why("fitsurf"));
+        } else {
+          surface_figures(report, scene.surface, read<BSplineSurface>(out / "surface.txt", read_surface), bounds);
+        }
+        if (!why("toolpath").empty()) {
+          report.missing("tool path gouge max", why("toolpath"));
+          report.missing("tool path excess material max", why("toolpath"));
+        } else {
+          toolpath_figures(report, scene.surface, read<ClData>(out / "path.cl", read_cl), bounds);
+        }
+        if (report.failed) throw std::runtime_error("some figures are out of bounds or a stage failed");
+      });
+}
