@@ -51,9 +51,11 @@ void ders_basis_funs(int i, double u, int p, int nd, const std::vector<double>& 
   // A2.3: ndu holds the basis functions (upper triangle) and knot differences (lower);
   // a holds the two most recent rows of coefficients a_{k,j}.
   constexpr int M = kMaxBSplineDegree + 1;
-  std::array<std::array<double, M>, M> ndu{};
-  std::array<std::array<double, M>, 2> a{};
-  std::array<double, M + 1> left{}, right{};
+  // Not value-initialised: the algorithm reads only entries it has written, and zeroing 27x26
+  // doubles per call dominated toolpath's pass planning.
+  std::array<std::array<double, M>, M> ndu;
+  std::array<std::array<double, M>, 2> a;
+  std::array<double, M + 1> left, right;
   const auto S = [](int k) { return static_cast<std::size_t>(k); };
   ndu[0][0] = 1.0;
   for (int j = 1; j <= p; ++j) {
@@ -164,7 +166,7 @@ SurfaceDerivatives surface_derivatives(const BSplineSurface& s, double u, double
   v = std::clamp(v, v0, v1);
   const int su = find_span(nu, p, u, s.knots_u);
   const int sv = find_span(nv, q, v, s.knots_v);
-  std::array<double, 3 * (kMaxBSplineDegree + 1)> Nu{}, Nv{};
+  std::array<double, 3 * (kMaxBSplineDegree + 1)> Nu, Nv;  // rows 0..du / 0..dv are written
   const int du = std::min(d, p), dv = std::min(d, q);
   ders_basis_funs(su, u, p, du, s.knots_u, Nu.data());
   ders_basis_funs(sv, v, q, dv, s.knots_v, Nv.data());

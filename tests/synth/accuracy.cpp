@@ -13,6 +13,7 @@
 #include <optional>
 #include <sstream>
 
+#include "formats/bspline.hpp"
 #include "formats/camera.hpp"
 #include "formats/error.hpp"
 #include "formats/text.hpp"
@@ -53,10 +54,10 @@ const std::map<std::string, Stage>& stages() {
       {"triangulate",
        {"triangulate",
         {"{work}/tracks.csv", "--camera", "{work}/camera.yaml", "--control-points", "{set}/control_points.csv",
-         "--points-out", "{work}/marker_points.csv", "-o", "{work}/cloud.ply"},
+         "-o", "{work}/cloud.ply"},
         {"calib", "match"}}},
-      {"fitsurf", {"fitsurf", {"{work}/cloud.ply", "-o", "{work}/surface.txt"}, {"triangulate"}}},
-      {"toolpath", {"toolpath", {"{work}/surface.txt", "--tool-diameter-mm", "6", "-o", "{work}/path.cl"}, {"fitsurf"}}},
+      {"fitsurf", {"fitsurf", {"{work}/cloud.ply", "--drop-plane", "-o", "{work}/surface.txt"}, {"triangulate"}}},
+      {"toolpath", {"toolpath", {"{work}/surface.txt", "--tool-radius-mm", "3", "-o", "{work}/path.cl"}, {"fitsurf"}}},
   };
   return s;
 }
@@ -116,50 +117,6 @@ T read(const fs::path& path, Reader reader) {
   return reader(in, path.string());
 }
 
-// --- B-spline surface point (The NURBS Book A2.1 FindSpan, A2.2 BasisFuns, A3.5 / A4.3) -----
-int find_span(int n, int p, double u, const std::vector<double>& U) {
-  if (u >= U[n + 1]) return n;
-  if (u <= U[p]) return p;
-  int low = p, high = n + 1, mid = (low + high) / 2;
-  while (u < U[mid] || u >= U[mid + 1]) {
-    (u < U[mid] ? high : low) = mid;
-    mid = (low + high) / 2;
-  }
-  return mid;
-}
-
-std::vector<double> basis(int i, double u, int p, const std::vector<double>& U) {
-  std::vector<double> N(p + 1), left(p + 1), right(p + 1);
-  N[0] = 1;
-  for (int j = 1; j <= p; ++j) {
-    left[j] = u - U[i + 1 - j];
-    right[j] = U[i + j] - u;
-    double saved = 0;
-    for (int r = 0; r < j; ++r) {
-      const double temp = N[r] / (right[r + 1] + left[j - r]);
-      N[r] = saved + right[r + 1] * temp;
-      saved = left[j - r] * temp;
-    }
-    N[j] = saved;
-  }
-  return N;
-}
-
-Eigen::Vector3d surface_point(const BSplineSurface& s, double u, double v) {
-  const int p = s.degree_u, q = s.degree_v;
-  const int su = find_span(s.num_poles_u - 1, p, u, s.knots_u), sv = find_span(s.num_poles_v - 1, q, v, s.knots_v);
-  const auto Nu = basis(su, u, p, s.knots_u), Nv = basis(sv, v, q, s.knots_v);
-  Eigen::Vector4d sum = Eigen::Vector4d::Zero();
-  for (int k = 0; k <= p; ++k) {
-    for (int l = 0; l <= q; ++l) {
-      const int i = su - p + k, j = sv - q + l;
-      const double w = s.rational() ? s.weights[static_cast<std::size_t>(i) * s.num_poles_v + j] : 1.0;
-      sum += Nu[k] * Nv[l] * w * s.pole(i, j).homogeneous();
-    }
-  }
-  return sum.head<3>() / sum.w();
-}
-
 // --- the figures -------------------------------------------------------------------------------
 void calibration_figures(Report& r, const Camera& truth, const Camera& got, const Bounds& b) {
   const double focal = 100 * std::max(std::abs(got.fx() / truth.fx() - 1), std::abs(got.fy() / truth.fy() - 1));
@@ -168,14 +125,16 @@ void calibration_figures(Report& r, const Camera& truth, const Camera& got, cons
          b.principal_point_px);
 }
 
-void marker_figures(Report& r, const std::map<PointId, Eigen::Vector3d>& truth, const std::vector<ControlPoint>& got,
+// Marker corners are the cloud's points whose track_id is a marker-corner point id.
+void marker_figures(Report& r, const std::map<PointId, Eigen::Vector3d>& truth, const PointCloud& got,
                     const Bounds& b) {
   double sum = 0, max = 0;
   std::size_t n = 0;
-  for (const ControlPoint& p : got) {
-    const auto it = truth.find(p.point_id);
+  const PointProperty* ids = got.find("track_id");
+  for (std::size_t k = 0; ids != nullptr && k < got.points_mm.size(); ++k) {
+    const auto it = truth.find(static_cast<PointId>(ids->values[k]));
     if (it == truth.end()) continue;
-    const double e = (p.xyz_mm - it->second).norm();
+    const double e = (got.points_mm[k] - it->second).norm();
     sum += e * e;
     max = std::max(max, e);
     ++n;
@@ -230,104 +189,132 @@ void toolpath_figures(Report& r, const synth::HeightField& h, const ClData& cl, 
   r.line("tool path excess material max", excess, "mm", b.excess_mm);
 }
 
+// Every figure that the outputs in `out` allow, against the truth in `set`; a stage listed in
+// `unavailable` (or whose output file is missing) prints "not yet available".
+void evaluate(const fs::path& set, const fs::path& out, std::map<std::string, std::string> unavailable,
+              const Bounds& bounds, Report& report) {
+  const synth::PartScene scene = read<synth::PartScene>(set / "scene.txt", synth::read_scene);
+  auto why = [&](const std::string& stage, const fs::path& file) {
+    if (unavailable.count(stage)) return unavailable[stage];
+    return fs::exists(file) ? std::string() : "no " + file.string();
+  };
+  const auto camera = [](std::istream& in, const std::string& s) { return read_camera_yaml(in, s); };
+  if (const auto w = why("calib", out / "camera.yaml"); !w.empty()) {
+    report.missing("calibration focal length error", w);
+    report.missing("calibration principal point error", w);
+  } else {
+    calibration_figures(report, read<Camera>(set / "camera.yaml", camera), read<Camera>(out / "camera.yaml", camera), bounds);
+  }
+  if (const auto w = why("triangulate", out / "cloud.ply"); !w.empty()) {
+    report.missing("marker corner 3D error RMS", w);
+    report.missing("marker corner 3D error max", w);
+  } else {
+    std::map<PointId, Eigen::Vector3d> truth;
+    for (const bool part : {false, true}) {
+      for (const ControlPoint& p : synth::marker_corners(scene, part)) truth[p.point_id] = p.xyz_mm;
+    }
+    marker_figures(report, truth,
+                   read<PointCloud>(out / "cloud.ply", [](std::istream& in, const std::string& s) { return read_ply(in, s); }),
+                   bounds);
+  }
+  if (const auto w = why("fitsurf", out / "surface.txt"); !w.empty()) {
+    report.missing("surface deviation RMS", w);
+    report.missing("surface deviation max", w);
+  } else {
+    surface_figures(report, scene.surface, read<BSplineSurface>(out / "surface.txt", read_surface), bounds);
+  }
+  if (const auto w = why("toolpath", out / "path.cl"); !w.empty()) {
+    report.missing("tool path gouge max", w);
+    report.missing("tool path excess material max", w);
+  } else {
+    toolpath_figures(report, scene.surface, read<ClData>(out / "path.cl", read_cl), bounds);
+  }
+}
+
+// Runs the stages in order on the scene in `set`, writing into `out`; returns the stages that
+// could not run and why.
+std::map<std::string, std::string> run_pipeline(const std::string& bin_dir, const fs::path& set, const fs::path& out,
+                                                Report& report) {
+  std::map<std::string, std::string> unavailable;  // stage -> why
+  for (const std::string name : {"detect-board", "calib", "detect", "match", "triangulate", "fitsurf", "toolpath"}) {
+    const Stage& st = stages().at(name);
+    for (const auto& need : st.needs) {
+      if (unavailable.count(need)) unavailable[name] = unavailable[need];
+    }
+    if (unavailable.count(name)) continue;
+    std::vector<std::string> args;
+    for (const auto& a : st.args) {
+      for (const auto& e : expand_glob(expand(a, set, out))) args.push_back(e);
+    }
+    const fs::path exe = fs::path(bin_dir) / st.tool;
+    if (!fs::exists(exe)) {
+      unavailable[name] = exe.string() + " is not in this build";
+      continue;
+    }
+    const test::ToolResult res = test::run_tool(exe.string(), args);
+    if (res.exit_code == 0) continue;
+    if (res.err.find("not built yet") != std::string::npos) {
+      unavailable[name] = st.tool + " not built yet";
+    } else if (res.exit_code == 2) {
+      // The stage exists but its command line differs from the one assumed here.
+      const std::string first = res.err.substr(0, res.err.find('\n'));
+      unavailable[name] = st.tool + ": update its command line in tests/synth/accuracy.cpp: " + first;
+    } else {
+      unavailable[name] = name + " failed (exit " + std::to_string(res.exit_code) + ")";
+      std::cerr << "synth_accuracy: " << name << " failed:\n" << res.err;
+      report.failed = true;
+    }
+  }
+  return unavailable;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string bin_dir = PHOTOMILL_BIN_DIR, work_dir;
+  std::string bin_dir = PHOTOMILL_BIN_DIR, work_dir, truth_dir, outputs_dir;
   bool small = false;
   return tool::run(
       argc, argv,
       {"synth_accuracy", "run the pipeline on a synth scene and compare every stage with the truth",
-       "synth_accuracy --small --work-dir /tmp/acc"},
+       "synth_accuracy --small --work-dir /tmp/acc   |   synth_accuracy --truth data/demo --outputs out/demo"},
       [&](CLI::App& app) {
         app.add_option("--bin-dir", bin_dir, "Folder of the photomill executables")->capture_default_str();
-        app.add_option("--work-dir", work_dir, "Folder for the scene (DIR/set) and the pipeline outputs (DIR/pipeline); both replaced")->required();
+        auto* work = app.add_option("--work-dir", work_dir,
+                                    "Render a scene into DIR/set, run the pipeline into DIR/pipeline (both replaced)");
         app.add_flag("--small", small, "A small scene (800x600, 6 + 8 views) for ctest");
+        auto* truth = app.add_option("--truth", truth_dir, "Evaluate existing outputs instead: the synth set with the truth");
+        auto* outputs = app.add_option("--outputs", outputs_dir,
+                                       "... and the folder with camera.yaml, cloud.ply, surface.txt, path.cl");
+        truth->needs(outputs);
+        outputs->needs(truth);
+        work->excludes(truth);
+        app.require_option(1, 2);
       },
       [&] {
-        const fs::path work = fs::absolute(work_dir), set = work / "set", out = work / "pipeline";
-        // Only the two subfolders this tool owns are replaced, never the folder given.
-        fs::remove_all(set);
-        fs::remove_all(out);
-        fs::create_directories(out);
-        synth::SynthOptions o;
-        o.camera.image_width_px = small ? 800 : 2000;
-        o.camera.image_height_px = small ? 600 : 1500;
-        const double f = small ? 960 : 2400;
-        o.camera.camera_matrix << f, 0, (o.camera.image_width_px - 1) / 2.0, 0, f, (o.camera.image_height_px - 1) / 2.0,
-            0, 0, 1;
-        o.camera.distortion = {-0.08, 0.06, 0.0004, -0.0003, 0};
-        o.views.count = small ? 6 : 12;
-        o.calibration.count = small ? 8 : 10;
-        o.render.noise_sigma = 1;
-        o.surface_step_mm = 5;
-        o.command_line = "synth_accuracy";
-        synth::write_dataset(o, set.string());
-        const synth::PartScene scene = read<synth::PartScene>(set / "scene.txt", synth::read_scene);
         const Bounds bounds;
         Report report;
-
-        std::map<std::string, std::string> unavailable;  // stage -> why
-        for (const std::string name : {"detect-board", "calib", "detect", "match", "triangulate", "fitsurf", "toolpath"}) {
-          const Stage& st = stages().at(name);
-          for (const auto& need : st.needs) {
-            if (unavailable.count(need)) unavailable[name] = unavailable[need];
-          }
-          if (unavailable.count(name)) continue;
-          std::vector<std::string> args;
-          for (const auto& a : st.args) {
-            for (const auto& e : expand_glob(expand(a, set, out))) args.push_back(e);
-          }
-          const fs::path exe = fs::path(bin_dir) / st.tool;
-          if (!fs::exists(exe)) {
-            unavailable[name] = exe.string() + " is not in this build";
-            continue;
-          }
-          const test::ToolResult res = test::run_tool(exe.string(), args);
-          if (res.exit_code != 0) {
-            if (res.err.find("not built yet") != std::string::npos) {
-              unavailable[name] = st.tool + " not built yet";
-            } else if (res.exit_code == 2) {
-              // The stage exists but its command line differs from the one assumed here.
-              const std::string first = res.err.substr(0, res.err.find('\n'));
-              unavailable[name] = st.tool + ": update its command line in tests/synth/accuracy.cpp: " + first;
-            } else {
-              unavailable[name] = name + " failed (exit " + std::to_string(res.exit_code) + ")";
-              std::cerr << "synth_accuracy: " << name << " failed:\n" << res.err;
-              report.failed = true;
-            }
-          }
-        }
-        auto why = [&](const std::string& s) { return unavailable.count(s) ? unavailable[s] : std::string(); };
-        if (!why("calib").empty()) {
-          report.missing("calibration focal length error", why("calib"));
-          report.missing("calibration principal point error", why("calib"));
+        if (!truth_dir.empty()) {
+          evaluate(truth_dir, outputs_dir, {}, bounds, report);
         } else {
-          calibration_figures(report, read<Camera>(set / "camera.yaml", [](std::istream& in, const std::string& s) { return read_camera_yaml(in, s); }),
-                              read<Camera>(out / "camera.yaml", [](std::istream& in, const std::string& s) { return read_camera_yaml(in, s); }),
-                              bounds);
-        }
-        if (!why("triangulate").empty()) {
-          report.missing("marker corner 3D error RMS", why("triangulate"));
-          report.missing("marker corner 3D error max", why("triangulate"));
-        } else {
-          std::map<PointId, Eigen::Vector3d> truth;
-          for (const bool part : {false, true}) {
-            for (const ControlPoint& p : synth::marker_corners(scene, part)) truth[p.point_id] = p.xyz_mm;
-          }
-          marker_figures(report, truth, read<std::vector<ControlPoint>>(out / "marker_points.csv", read_control_points), bounds);
-        }
-        if (!why("fitsurf").empty()) {
-          report.missing("surface deviation RMS", why("fitsurf"));
-          report.missing("surface deviation max", why("fitsurf"));
-        } else {
-          surface_figures(report, scene.surface, read<BSplineSurface>(out / "surface.txt", read_surface), bounds);
-        }
-        if (!why("toolpath").empty()) {
-          report.missing("tool path gouge max", why("toolpath"));
-          report.missing("tool path excess material max", why("toolpath"));
-        } else {
-          toolpath_figures(report, scene.surface, read<ClData>(out / "path.cl", read_cl), bounds);
+          const fs::path work = fs::absolute(work_dir), set = work / "set", out = work / "pipeline";
+          // Only the two subfolders this tool owns are replaced, never the folder given.
+          fs::remove_all(set);
+          fs::remove_all(out);
+          fs::create_directories(out);
+          synth::SynthOptions o;
+          o.camera.image_width_px = small ? 800 : 2000;
+          o.camera.image_height_px = small ? 600 : 1500;
+          const double f = small ? 960 : 2400;
+          o.camera.camera_matrix << f, 0, (o.camera.image_width_px - 1) / 2.0, 0, f,
+              (o.camera.image_height_px - 1) / 2.0, 0, 0, 1;
+          o.camera.distortion = {-0.08, 0.06, 0.0004, -0.0003, 0};
+          o.views.count = small ? 6 : 12;
+          o.calibration.count = small ? 8 : 10;
+          o.render.noise_sigma = 1;
+          o.surface_step_mm = 5;
+          o.command_line = "synth_accuracy";
+          synth::write_dataset(o, set.string());
+          evaluate(set, out, run_pipeline(bin_dir, set, out, report), bounds, report);
         }
         if (report.failed) throw std::runtime_error("some figures are out of bounds or a stage failed");
       });

@@ -1,0 +1,203 @@
+// Golden CLI cases for toolpath and clpost (arguments, stdin, exit code, what stdout and stderr
+// must hold), and the pipeline surface -> toolpath -> clpost -> independent G-code reader.
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "formats/cad.hpp"
+#include "formats/surface.hpp"
+#include "tests/run_tool.hpp"
+#include "tests/temp_dir.hpp"
+#include "toolpath/test_surfaces.hpp"
+
+namespace photomill::toolpath {
+namespace {
+
+namespace fs = std::filesystem;
+using photomill::test::run_tool;
+using photomill::test::TempDir;
+using photomill::test::ToolResult;
+
+// A small, quick surface: the 60 x 30 mm ridge.
+std::string ridge_text() {
+  std::ostringstream s;
+  write_surface(s, test::cylinder_surface(20, true));
+  return s.str();
+}
+
+// Fast settings for the CLI cases.
+const std::vector<std::string> kQuick{"--scallop-mm", "0.05", "--chord-tol-mm", "0.02"};
+
+std::vector<std::string> quick(std::vector<std::string> args) {
+  args.insert(args.end(), kQuick.begin(), kQuick.end());
+  return args;
+}
+
+struct CliCase {
+  const char* name;
+  std::string tool;
+  std::vector<std::string> args;
+  std::string stdin_text;
+  int exit_code;
+  std::string stdout_starts;  // empty: stdout must be empty
+  std::string stderr_has;     // empty: not checked
+};
+
+void PrintTo(const CliCase& c, std::ostream* os) { *os << c.name; }
+
+class ToolpathCli : public ::testing::TestWithParam<CliCase> {};
+
+TEST_P(ToolpathCli, GoldenCase) {
+  const CliCase& c = GetParam();
+  const ToolResult r = run_tool(c.tool, c.args, c.stdin_text);
+  EXPECT_EQ(r.exit_code, c.exit_code) << r.err;
+  if (c.stdout_starts.empty()) {
+    EXPECT_EQ(r.out, "");
+  } else {
+    EXPECT_EQ(r.out.rfind(c.stdout_starts, 0), 0u) << r.out.substr(0, 200);
+  }
+  if (!c.stderr_has.empty()) {
+    EXPECT_NE(r.err.find(c.stderr_has), std::string::npos) << r.err;
+  }
+}
+
+std::string bad_surface() {
+  // Line 3 ("poles") carries a word instead of a number.
+  return "photomill-surface v1\ndegrees 3 3\npoles four 4\n";
+}
+
+const std::string kTilted = "$$ five-axis\nUNITS/MM\nFEDRAT/MMPM,500\nGOTO/0,0,10,0,0.6,0.8\nEND\nFINI\n";
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, ToolpathCli,
+    ::testing::Values(
+        CliCase{"missing_file", "toolpath", {"no-such.surf"}, "", 1, "", "toolpath: no-such.surf"},
+        CliCase{"malformed_line", "toolpath", {"-"}, bad_surface(), 1, "", "<stdin>:3:"},
+        CliCase{"empty_stdin", "toolpath", {}, "", 1, "", "<stdin>"},
+        CliCase{"bad_direction", "toolpath", {"--direction", "w"}, "", 2, "", "--direction"},
+        CliCase{"bad_pattern", "toolpath", {"--pattern", "spiral"}, "", 2, "", "--pattern"},
+        CliCase{"chord_over_scallop", "toolpath", {"--chord-tol-mm", "0.02", "-"}, ridge_text(), 2, "",
+                "must be below --scallop-mm"},
+        CliCase{"negative_radius", "toolpath", {"--tool-radius-mm", "-3", "-"}, ridge_text(), 2, "", "--tool-radius-mm"},
+        CliCase{"face_of_text_surface", "toolpath", quick({"--face", "2", "-"}), ridge_text(), 2, "", "--face 2"},
+        CliCase{"apt_on_stdout", "toolpath", quick({"-"}), ridge_text(), 0, "$$ photomill CL data v1", "passes"},
+        CliCase{"csv_on_stdout", "toolpath", quick({"--format", "csv", "-"}), ridge_text(), 0,
+                "move,x_mm,y_mm,z_mm,i,j,k,feed_mm_per_min\nrapid,", ""},
+        CliCase{"quiet", "toolpath", quick({"-q", "-"}), ridge_text(), 0, "$$ photomill CL data v1", ""},
+        CliCase{"clpost_tilted_axis", "clpost", {}, kTilted, 1, "", "only +Z"},
+        CliCase{"clpost_missing", "clpost", {"no-such.cl"}, "", 1, "", "clpost: no-such.cl"},
+        CliCase{"clpost_bad_record", "clpost", {}, "$$ x\nUNITS/MM\nSPIN/42\n", 1, "", "<stdin>:3:"},
+        CliCase{"clpost_bad_coolant", "clpost", {"--coolant", "mist"}, "", 2, "", "--coolant"},
+        CliCase{"clpost_apt", "clpost", {"--spindle-rpm", "9000"},
+                "UNITS/MM\nRAPID\nGOTO/0,0,20\nFEDRAT/MMPM,800\nGOTO/0,0,5\nGOTO/10,0,5\nEND\nFINI\n", 0,
+                "(photomill clpost: photomill)\nG21 G90 G94 G17\nG0 Z20\nS9000 M3\nG0 X0 Y0 Z20\nG1 Z5 F800\nG1 X10\n", "" }),
+    [](const auto& info) { return std::string(info.param.name); });
+
+TEST(ToolpathCli, QuietStderrAndVerboseNothingOnStdoutButData) {
+  const ToolResult quiet = run_tool("toolpath", quick({"-q", "-"}), ridge_text());
+  EXPECT_EQ(quiet.err, "");
+  const ToolResult normal = run_tool("toolpath", quick({"-"}), ridge_text());
+  EXPECT_EQ(normal.out, quiet.out) << "messages never reach stdout";
+}
+
+TEST(ToolpathCli, OutputFileOnlyOnSuccess) {
+  TempDir dir;
+  const fs::path out = dir.path() / "part.cl", surf = dir.path() / "ridge.surf";
+  std::ofstream(surf) << ridge_text();
+  ToolResult r = run_tool("toolpath", quick({"-o", out.string(), "missing.surf"}));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_FALSE(fs::exists(out));
+  r = run_tool("toolpath", quick({"-o", out.string(), surf.string()}));
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out, "");
+  ASSERT_TRUE(fs::exists(out));
+  // Nothing but the output file was left behind (no temporary files).
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 2);
+}
+
+TEST(ToolpathCli, StepAndIgesInputGiveOnlyClDataOnStdout) {
+  TempDir dir;
+  const BSplineSurface ridge = test::cylinder_surface(20, true);
+  const fs::path step = dir.path() / "ridge.step", iges = dir.path() / "ridge.igs";
+  write_step(ridge, step.string());
+  write_iges(ridge, iges.string());
+  const ToolResult text = run_tool("toolpath", quick({"-"}), ridge_text());
+  for (const fs::path& p : {step, iges}) {
+    const ToolResult r = run_tool("toolpath", quick({p.string()}));
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(r.out.rfind("$$ photomill CL data v1: tool tip positions, mm\nPARTNO/", 0), 0u) << r.out.substr(0, 300);
+    // The same surface gives the same path as the photomill text (the CAD round trip is exact
+    // to the last digits, so compare the number of moves).
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), std::count(text.out.begin(), text.out.end(), '\n')) << p;
+  }
+  // STEP through stdin, and a face that does not exist.
+  std::ifstream in(step);
+  std::stringstream data;
+  data << in.rdbuf();
+  const ToolResult piped = run_tool("toolpath", quick({"-"}), data.str());
+  EXPECT_EQ(piped.exit_code, 0) << piped.err;
+  EXPECT_EQ(piped.out.rfind("$$ photomill CL data v1", 0), 0u);
+  const ToolResult face = run_tool("toolpath", quick({"--face", "1", step.string()}));
+  EXPECT_EQ(face.exit_code, 2);
+  EXPECT_NE(face.err.find("has 1 face"), std::string::npos) << face.err;
+}
+
+TEST(ToolpathCli, PreviewReportAndVerify) {
+  TempDir dir;
+  const fs::path png = dir.path() / "p.png", json = dir.path() / "r.json";
+  const ToolResult r = run_tool(
+      "toolpath", quick({"--verify", "--zmap-cell-mm", "0.2", "--preview", png.string(), "--report", json.string(), "-"}),
+      ridge_text());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("z-map"), std::string::npos) << r.err;
+  ASSERT_TRUE(fs::exists(png));
+  EXPECT_EQ(photomill::test::read_file(png).substr(1, 3), "PNG");
+  const std::string report = photomill::test::read_file(json);
+  for (const char* key : {"\"cl_points\":", "\"feed_length_mm\":", "\"max_chord_error_mm\":", "\"gouges\":", "\"verify\":",
+                          "\"max_scallop_mm\":", "\"max_gouge_mm\":"}) {
+    EXPECT_NE(report.find(key), std::string::npos) << key;
+  }
+  // The report is valid JSON (checked by Python's parser).
+  const ToolResult parsed = run_tool("/usr/bin/env", {"python3", "-c", "import json,sys; json.load(open(sys.argv[1]))", json.string()});
+  EXPECT_EQ(parsed.exit_code, 0) << parsed.err;
+}
+
+TEST(ToolpathCli, GroovePathReportsWhereItWouldGouge) {
+  std::ostringstream surf;
+  write_surface(surf, test::trough_surface(2.2));
+  const ToolResult lifted = run_tool("toolpath", quick({"-"}), surf.str());
+  EXPECT_EQ(lifted.exit_code, 0) << lifted.err;
+  EXPECT_NE(lifted.err.find("would gouge the surface"), std::string::npos) << lifted.err;
+  EXPECT_NE(lifted.err.find("the tool was lifted clear"), std::string::npos);
+  EXPECT_NE(lifted.err.find("concave radius"), std::string::npos);
+  const ToolResult reported = run_tool("toolpath", quick({"--no-lift", "-"}), surf.str());
+  EXPECT_EQ(reported.exit_code, 0);
+  EXPECT_NE(reported.err.find("NOT lifted"), std::string::npos) << reported.err;
+  EXPECT_NE(lifted.out, reported.out);
+}
+
+// The whole chain through the executables: toolpath -> clpost, read back by the Python reader.
+TEST(ToolpathCli, PipelineThroughClpostReadsBackInAnIndependentReader) {
+  TempDir dir;
+  const fs::path csv = dir.path() / "part.csv", ngc = dir.path() / "part.ngc";
+  const ToolResult apt = run_tool("toolpath", quick({"--spindle-rpm", "12000", "--coolant", "-"}), ridge_text());
+  ASSERT_EQ(apt.exit_code, 0) << apt.err;
+  ASSERT_EQ(run_tool("toolpath", quick({"--format", "csv", "-o", csv.string(), "-"}), ridge_text()).exit_code, 0);
+  const ToolResult post = run_tool("clpost", {"-o", ngc.string()}, apt.out);
+  ASSERT_EQ(post.exit_code, 0) << post.err;
+  const std::string program = photomill::test::read_file(ngc);
+  EXPECT_NE(program.find("S12000 M3\nM8\n"), std::string::npos);
+  EXPECT_NE(program.find("M9\nM5\nM30\n"), std::string::npos);
+  const ToolResult check = run_tool(
+      "/usr/bin/env", {"python3", std::string(PHOTOMILL_SOURCE_DIR) + "/toolpath/gcode_check.py", ngc.string(), csv.string()});
+  EXPECT_EQ(check.exit_code, 0) << check.out << check.err;
+  // clpost also reads the CSV form.
+  const ToolResult from_csv = run_tool("clpost", {csv.string()});
+  EXPECT_EQ(from_csv.exit_code, 0) << from_csv.err;
+  EXPECT_NE(from_csv.out.find("G1 "), std::string::npos);
+}
+
+}  // namespace
+}  // namespace photomill::toolpath
