@@ -1,13 +1,102 @@
-// detect: markers, board corners and natural features in images.
-// Not built yet (issue #5): only --help and --version work; running it says so and exits 1.
+// detect: images -> observations CSV (image,point_id,u_px,v_px) of calibration-board corners, or
+// with --print-board the board's control points CSV. One mode per run; more modes (ArUco markers,
+// natural features) plug in beside the board mode. Per-image results go to stderr.
+#include <string>
+#include <vector>
+
+#include "detect/boards.hpp"
+#include "detect/photo_cli.hpp"
 #include "formats/error.hpp"
+#include "formats/log.hpp"
 #include "formats/tool.hpp"
 
+namespace {
+
+using namespace photomill;
+
+void run_boards(detect::BoardSpec spec, const detect::BoardDetectOptions& options,
+                const std::vector<std::string>& image_args, bool print_board, const std::string& output) {
+  detect::validate_board(spec);
+  tool::OutputFile out(output);
+  if (print_board) {
+    write_control_points(out.stream(), detect::board_control_points(spec));
+    out.commit();
+    return;
+  }
+  const auto images = detect::expand_image_arguments(image_args, *tool::open_input("-"));
+  if (images.empty()) throw UsageError("no images given");
+  const auto results = detect::detect_boards(images, spec, options,
+                                             [](const detect::ImageDetection& r) { log::info(detect::describe(r)); });
+  std::vector<Observation> observations;
+  int found = 0;
+  for (const auto& r : results) {
+    found += r.found ? 1 : 0;
+    observations.insert(observations.end(), r.observations.begin(), r.observations.end());
+  }
+  if (found == 0) throw GeometryError("no board found in any of the " + std::to_string(images.size()) + " images");
+  write_observations(out.stream(), observations);
+  out.commit();
+  log::info("board found in " + std::to_string(found) + " of " + std::to_string(images.size()) + " images, " +
+            std::to_string(observations.size()) + " corners");
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
-  std::vector<std::string> inputs;
-  return photomill::tool::run(
+  std::vector<std::string> images;
+  std::string output = "-";
+  std::string chessboard;
+  std::string charuco;
+  bool print_board = false;
+  bool raw_charuco = false;
+  detect::BoardSpec spec;
+  detect::BoardDetectOptions options;
+  detect::PhotoCli photo;  // --aruco, --aruco-dict-file, --features (detect/photo_cli.hpp)
+  return tool::run(
       argc, argv,
-      {"detect", "markers, board corners and natural features in images (not built yet, issue #5)", "detect --help"},
-      [&](CLI::App& app) { app.add_option("inputs", inputs, "Input files ('-' for stdin)"); },
-      [] { throw std::runtime_error("this stage is not built yet (issue #5); no output written"); });
+      {"detect", "find calibration-board corners in images; write observations CSV",
+       "detect --chessboard 9x6 left*.jpg | calib --chessboard 9x6 --square-mm 25 > cam.yaml"},
+      [&](CLI::App& app) {
+        app.add_option("images", images, "Images; '-' reads image paths from stdin, one per line");
+        app.add_option("-o,--output", output, "Output CSV (default: stdout)");
+        auto* cb = app.add_option("--chessboard", chessboard, "Chessboard with COLSxROWS inner corners (9x6)")
+                       ->group("Boards");
+        auto* ch = app.add_option("--charuco", charuco, "ChArUco board with COLSxROWS squares (5x7)")->group("Boards");
+        cb->excludes(ch);
+        app.add_option("--square-mm", spec.square_mm, "Side of a board square, mm (control points; ChArUco)")
+            ->group("Boards")->capture_default_str();
+        app.add_option("--marker-mm", spec.marker_mm, "Side of a marker, mm (ChArUco; with --scale-bars-out)")->group("Boards");
+        detect::add_photo_options(app, photo);
+        app.add_option("--dict", spec.dictionary, "ChArUco: ArUco dictionary")
+            ->group("Boards")->capture_default_str()
+            ->check(CLI::IsMember(detect::aruco_dictionary_names()));
+        app.add_flag("--print-board", print_board, "Write the board's control points CSV (z = 0, mm) instead")
+            ->group("Boards");
+        app.add_flag("--no-charuco-refine", raw_charuco,
+                     "Keep OpenCV 4.6's interpolated ChArUco corners (shifted by ~0.5 px) unrefined")
+            ->group("Boards");
+        app.add_option("--charuco-max-window", options.charuco_max_half_window_px,
+                       "ChArUco: largest cornerSubPix half-window, px")
+            ->group("Boards")->capture_default_str()->check(CLI::Range(2, 50));
+        app.add_option("-j,--jobs", options.jobs, "Images processed in parallel (0: all cores)")
+            ->capture_default_str()->check(CLI::NonNegativeNumber);
+      },
+      [&] {
+        options.charuco_refine = !raw_charuco;
+        if (!chessboard.empty()) {
+          std::tie(spec.cols, spec.rows) = detect::parse_grid(chessboard, "--chessboard");
+          spec.kind = detect::BoardKind::Chessboard;
+        } else if (!charuco.empty()) {
+          std::tie(spec.cols, spec.rows) = detect::parse_grid(charuco, "--charuco");
+          spec.kind = detect::BoardKind::Charuco;
+        } else if (detect::photo_mode(photo)) {
+          photo.marker_mm = spec.marker_mm;
+          photo.options.jobs = options.jobs;
+          return detect::run_photos(photo, detect::expand_image_arguments(images, *tool::open_input("-")), output);
+        } else {
+          throw UsageError("say what to detect: --chessboard COLSxROWS, --charuco COLSxROWS, --aruco DICT, "
+                           "--aruco-dict-file FILE or --features DIR");
+        }
+        run_boards(spec, options, images, print_board, output);
+      });
 }

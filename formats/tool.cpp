@@ -141,7 +141,12 @@ std::string read_all(const std::string& path, std::size_t max_bytes) {
   return data;
 }
 
-OutputFile::OutputFile(std::string path) : path_(std::move(path)), to_stdout_(path_.empty() || path_ == "-") {}
+OutputFile::OutputFile(std::string path) : path_(std::move(path)), to_stdout_(path_.empty() || path_ == "-") {
+  std::error_code ec;
+  const auto status = std::filesystem::status(path_, ec);
+  direct_ = !to_stdout_ && !ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status);
+  if (direct_ && std::filesystem::is_directory(status)) throw InputError(path_, 0, "is a directory");
+}
 
 OutputFile::~OutputFile() {
   if (!temp_.empty() && !committed_) {
@@ -153,8 +158,9 @@ OutputFile::~OutputFile() {
 
 const std::string& OutputFile::temp_path() {
   if (temp_.empty()) {
-    temp_ = make_temp_name(to_stdout_ ? std::filesystem::temp_directory_path() / "photomill-out"
-                                      : std::filesystem::path(path_));
+    // stdout and devices: a private temporary file whose contents commit() copies over.
+    temp_ = make_temp_name(to_stdout_ || direct_ ? std::filesystem::temp_directory_path() / "photomill-out"
+                                                 : std::filesystem::path(path_));
     register_pending(temp_);
   }
   return temp_;
@@ -163,8 +169,8 @@ const std::string& OutputFile::temp_path() {
 std::ostream& OutputFile::stream() {
   if (to_stdout_) return std::cout;
   if (!file_) {
-    const std::string& tmp = temp_path();
-    file_ = std::make_unique<std::ofstream>(tmp, std::ios::binary | std::ios::trunc);
+    const std::string& target = direct_ ? path_ : temp_path();
+    file_ = std::make_unique<std::ofstream>(target, std::ios::binary | std::ios::trunc);
     if (!*file_) {
       throw InputError(path_, 0, std::string("cannot write: ") + std::strerror(errno));
     }
@@ -183,6 +189,24 @@ void OutputFile::commit() {
       unregister_pending(temp_);
     }
     std::cout.flush();
+    committed_ = true;
+    return;
+  }
+  if (direct_) {
+    if (file_) {
+      file_->flush();
+      const bool ok = static_cast<bool>(*file_);
+      file_->close();
+      if (!ok) throw InputError(path_, 0, "write failed");
+    }
+    if (!temp_.empty()) {  // a library wrote by name: copy it onto the device
+      std::ifstream in(temp_, std::ios::binary);
+      std::ofstream out(path_, std::ios::binary);
+      out << in.rdbuf();
+      in.close();
+      std::remove(temp_.c_str());
+      unregister_pending(temp_);
+    }
     committed_ = true;
     return;
   }

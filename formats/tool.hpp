@@ -41,6 +41,8 @@ std::string read_all(const std::string& path, std::size_t max_bytes);
 // An output that is either stdout ("-" or empty path) or a file written under a temporary name
 // in the same folder and renamed onto `path` by commit(). If the object is destroyed without
 // commit() (an exception, a signal), the temporary file is removed and `path` is untouched.
+// A target that exists and is not a regular file (/dev/null, /dev/stdout, a FIFO) is written
+// directly: renaming onto it would replace the device (and as root it would succeed).
 class OutputFile {
 public:
   explicit OutputFile(std::string path);
@@ -62,6 +64,7 @@ private:
   std::string temp_;
   std::unique_ptr<std::ofstream> file_;
   bool committed_ = false;
+  bool direct_ = false;  // write straight to a device or FIFO, no temporary
 };
 
 }  // namespace photomill::tool

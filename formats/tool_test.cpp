@@ -69,6 +69,25 @@ TEST(OutputFile, MissingFolderIsAnInputErrorNamingThePath) {
   }
 }
 
+TEST(OutputFile, DevicesAreWrittenInPlaceNeverReplaced) {
+  // Renaming a temporary onto /dev/null would replace the device (as root it succeeds).
+  for (int round = 0; round < 2; ++round) {
+    OutputFile out("/dev/null");
+    if (round == 0) {
+      out.stream() << "discarded\n";
+    } else {
+      std::ofstream(out.temp_path()) << "written by name";
+    }
+    out.commit();
+  }
+  EXPECT_TRUE(std::filesystem::is_character_file("/dev/null"));
+}
+
+TEST(OutputFile, ADirectoryIsNotAnOutput) {
+  test::TempDir dir;
+  EXPECT_THROW(OutputFile(dir.path().string()), InputError);
+}
+
 TEST(OpenInput, MissingFileAndDirectoryAreNamed) {
   test::TempDir dir;
   const auto missing = (dir.path() / "nope.csv").string();

@@ -1,0 +1,121 @@
+// calib's options (see cli.hpp).
+#include "calib/cli.hpp"
+
+#include <map>
+
+#include "detect/boards.hpp"
+#include "formats/error.hpp"
+#include "formats/tool.hpp"
+
+namespace photomill::calib {
+
+void add_options(CLI::App& app, CalibCli& c) {
+  auto& o = c.options;
+  app.add_option("observations", c.observations, "Observations CSV (image,point_id,u_px,v_px); '-' = stdin")
+      ->capture_default_str();
+  app.add_option("-o,--output", c.output, "camera.yaml to write (default: stdout)");
+  const std::string g_in = "Control points (one of)";
+  auto* ctl = app.add_option("--control", c.control, "Control points CSV (point_id,x_mm,y_mm,z_mm); repeatable")
+                  ->group(g_in)->allow_extra_args(false)->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  auto* cb = app.add_option("--chessboard", c.chessboard, "A chessboard with COLSxROWS inner corners (as detect)")
+                 ->group(g_in);
+  auto* ch = app.add_option("--charuco", c.charuco, "A ChArUco board with COLSxROWS squares (as detect)")->group(g_in);
+  ctl->excludes(cb)->excludes(ch);
+  cb->excludes(ch);
+  app.add_option("--square-mm", c.square_mm, "Board square side, mm (sets the unit of the poses only)")
+      ->group(g_in)->capture_default_str();
+  app.add_option("--image-size", c.image_size, "WxH in px (default: read from the images the observations name)");
+
+  const std::string g_m = "Method";
+  app.add_option("--method", c.method, "Initial estimate: planar (Zhang), dlt (normalised DLT), auto (by the points)")
+      ->group(g_m)->capture_default_str()->check(CLI::IsMember({"auto", "planar", "dlt"}));
+  app.add_option("--optimizer", c.optimizer,
+                 "Refinement: opencv (calibrateCamera), lm (Ceres LM), simplex (Nelder-Mead); auto: opencv "
+                 "for boards, lm otherwise")
+      ->group(g_m)->capture_default_str()->check(CLI::IsMember({"auto", "opencv", "lm", "simplex"}));
+  app.add_flag("--fix-aspect-ratio", o.model.fix_aspect_ratio, "fx = fy")->group(g_m);
+  app.add_flag("--fix-principal-point", o.model.fix_principal_point, "cx, cy at the image centre")->group(g_m);
+  app.add_flag("--zero-tangent", o.model.zero_tangent, "p1 = p2 = 0")->group(g_m);
+  app.add_flag("--fix-k3", o.model.fix_k3, "k3 = 0")->group(g_m);
+  app.add_flag("--rational-model", o.model.rational, "Estimate k4, k5, k6 too (8 coefficients)")->group(g_m);
+  app.add_option("--max-iterations", o.lm.max_iterations, "LM iterations (lm, opencv)")
+      ->group(g_m)->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--simplex-scaling", c.simplex_scaling,
+                 "Simplex coordinates: jacobian (whitened by J^T J at each restart) or diagonal (fixed steps)")
+      ->group(g_m)->capture_default_str()->check(CLI::IsMember({"jacobian", "diagonal"}));
+  app.add_option("--simplex-max-evaluations", o.simplex.simplex.max_evaluations, "Simplex: cost evaluations at most")
+      ->group(g_m)->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--simplex-ftol", o.simplex.simplex.ftol, "Simplex: relative spread of the vertex costs that ends a run")
+      ->group(g_m)->capture_default_str()->check(CLI::PositiveNumber);
+
+  const std::string g_q = "Quality";
+  app.add_option("--reject-factor", o.reject_factor,
+                 "Reject the worst view while its RMS > FACTOR x median view RMS (0: never)")
+      ->group(g_q)->capture_default_str()->check(CLI::NonNegativeNumber);
+  app.add_option("--reject-min-px", o.reject_min_px, "... and > this RMS, px")
+      ->group(g_q)->capture_default_str()->check(CLI::NonNegativeNumber);
+  app.add_option("--min-views", o.min_views, "Warn below this many views; rejection keeps at least this many")
+      ->group(g_q)->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--min-points", o.min_points_per_view, "Skip views with fewer control-point observations")
+      ->group(g_q)->capture_default_str()->check(CLI::Range(4, 1000000));
+  app.add_option("--report", c.report, "Write a JSON report to FILE")->group(g_q);
+  app.add_option("--plot", c.plot, "Write the residual vectors over the image frame to FILE.png")->group(g_q);
+}
+
+CalibOptions to_options(const CalibCli& c) {
+  CalibOptions o = c.options;
+  o.method = c.method == "planar" ? Method::Planar : c.method == "dlt" ? Method::Dlt : Method::Auto;
+  o.optimizer = c.optimizer == "opencv"    ? Optimizer::OpenCv
+                : c.optimizer == "lm"      ? Optimizer::Lm
+                : c.optimizer == "simplex" ? Optimizer::Simplex
+                                           : Optimizer::Auto;
+  o.simplex.scaling = c.simplex_scaling == "diagonal" ? SimplexScaling::Diagonal : SimplexScaling::Jacobian;
+  return o;
+}
+
+std::vector<ControlPoint> load_control(const CalibCli& c) {
+  if (!c.control.empty()) {
+    std::vector<ControlPoint> all;
+    std::map<PointId, std::string> defined_in;
+    for (const auto& path : c.control) {
+      auto in = tool::open_input(path);
+      for (auto& p : read_control_points(*in, tool::source_name(path))) {
+        const auto [it, fresh] = defined_in.emplace(p.point_id, path);
+        if (!fresh) {
+          throw InputError(tool::source_name(path), 0,
+                           "point " + std::to_string(p.point_id) + " is also defined in " + it->second);
+        }
+        all.push_back(std::move(p));
+      }
+    }
+    return all;
+  }
+  detect::BoardSpec spec;
+  spec.square_mm = c.square_mm;
+  if (!c.chessboard.empty()) {
+    spec.kind = detect::BoardKind::Chessboard;
+    std::tie(spec.cols, spec.rows) = detect::parse_grid(c.chessboard, "--chessboard");
+  } else if (!c.charuco.empty()) {
+    spec.kind = detect::BoardKind::Charuco;
+    std::tie(spec.cols, spec.rows) = detect::parse_grid(c.charuco, "--charuco");
+  } else {
+    throw UsageError("give the control points: --control FILE, --chessboard COLSxROWS or --charuco COLSxROWS");
+  }
+  return detect::board_control_points(spec);
+}
+
+cv::Size resolve_image_size(const CalibCli& c, const std::vector<Observation>& observations) {
+  if (!c.image_size.empty()) {
+    const auto [w, h] = detect::parse_grid(c.image_size, "--image-size");
+    if (w <= 0 || h <= 0) throw UsageError("--image-size: width and height must be positive");
+    return {w, h};
+  }
+  const auto size = image_size_from_files(observations);
+  if (!size) {
+    throw UsageError("the image size is unknown: give --image-size WxH (the images the observations name "
+                     "cannot be read from here)");
+  }
+  return *size;
+}
+
+}  // namespace photomill::calib

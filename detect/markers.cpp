@@ -1,0 +1,608 @@
+// ArUco marker detection and edge-model corner refinement (contract and model in markers.hpp).
+#include "detect/markers.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <optional>
+
+#include <Eigen/Dense>
+#include <opencv2/aruco.hpp>
+
+#include "detect/boards.hpp"
+#include "formats/error.hpp"
+
+namespace photomill::detect {
+namespace {
+
+constexpr double kInvSqrt2 = 0.70710678118654752440;
+constexpr double kInvSqrt2Pi = 0.39894228040143267794;
+constexpr double kMinSigmaPx = 0.05;
+
+double normal_pdf(double z) { return kInvSqrt2Pi * std::exp(-0.5 * z * z); }
+double normal_cdf(double z) { return 0.5 * std::erfc(-z * kInvSqrt2); }
+
+// The pixel-integrated blurred step R(x; sigma) and its derivatives (formula in markers.hpp):
+//   dR/dx = Phi((x + 1/2)/sigma) - Phi((x - 1/2)/sigma)
+//   dR/dsigma = phi((x + 1/2)/sigma) - phi((x - 1/2)/sigma)   (since dG/dsigma = phi(x/sigma)).
+struct Response {
+  double r, dr_dx, dr_dsigma;
+};
+Response edge_response(double x, double sigma) {
+  const double zp = (x + 0.5) / sigma, zm = (x - 0.5) / sigma;
+  // Beyond 8.5 sigma Phi is 0 or 1 to 1e-17: the pixel is plain white or black.
+  if (zm > 8.5) return {1, 0, 0};
+  if (zp < -8.5) return {0, 0, 0};
+  const double cp = normal_cdf(zp), cm = normal_cdf(zm), pp = normal_pdf(zp), pm = normal_pdf(zm);
+  return {(x + 0.5) * cp + sigma * pp - (x - 0.5) * cm - sigma * pm, cp - cm, pp - pm};
+}
+
+// One edge of the initial quadrilateral: t along it from `origin`, s across it, outwards.
+struct EdgeFrame {
+  Eigen::Vector2d origin, d, n;
+  double length = 0;
+};
+
+// The fitted edge: s = f(tau), tau = t / length - 1/2, f a polynomial with coefficients c.
+struct EdgeCurve {
+  EdgeFrame frame;
+  Eigen::VectorXd c;
+  double sigma = 0, contrast = 0, rms = 0;
+  double f(double tau) const {
+    double v = 0;
+    for (Eigen::Index j = c.size() - 1; j >= 0; --j) v = v * tau + c[j];
+    return v;
+  }
+  double df(double tau) const {
+    double v = 0;
+    for (Eigen::Index j = c.size() - 1; j >= 1; --j) v = v * tau + static_cast<double>(j) * c[j];
+    return v;
+  }
+  // Signed distance-like function, zero on the curve, and its gradient in the image.
+  double g(const Eigen::Vector2d& p) const {
+    const Eigen::Vector2d q = p - frame.origin;
+    return frame.n.dot(q) - f(frame.d.dot(q) / frame.length - 0.5);
+  }
+  Eigen::Vector2d grad(const Eigen::Vector2d& p) const {
+    const double tau = frame.d.dot(p - frame.origin) / frame.length - 0.5;
+    return frame.n - df(tau) / frame.length * frame.d;
+  }
+};
+
+struct Sample {
+  double tau, s, value;
+};
+
+// The other edge at one end of an edge: the line through the corner along that edge, with its
+// unit normal pointing into the marker, and the sine of the interior angle there.
+struct NeighbourEdge {
+  Eigen::Vector2d corner, inward;
+  double sin_a = 1;
+};
+
+// Pixels (centres at integer coordinates) with t in [t0, t1] and |s - f(tau)| <= w, minus those the
+// neighbouring edges' transitions reach: a pixel less than delta inside this edge (s - f < delta)
+// must also lie delta or more inside each neighbouring edge (delta = blur reach). Near a corner
+// this trims the inner side of the band only, so the transition itself is used up to delta /
+// sin(alpha) from the corner.
+std::vector<Sample> band_samples(const cv::Mat& grey, const EdgeFrame& e, double t0, double t1, double w,
+                                 const EdgeCurve* curve, const std::array<NeighbourEdge, 2>& neighbours, double delta) {
+  double reach = w;
+  if (curve) {
+    for (double tau : {t0 / e.length - 0.5, 0.5 * (t0 + t1) / e.length - 0.5, t1 / e.length - 0.5}) {
+      reach = std::max(reach, w + std::abs(curve->f(tau)));
+    }
+  }
+  double x_lo = 1e300, x_hi = -1e300, y_lo = 1e300, y_hi = -1e300;
+  for (double t : {t0, t1}) {
+    for (double s : {-reach, reach}) {
+      const Eigen::Vector2d p = e.origin + t * e.d + s * e.n;
+      x_lo = std::min(x_lo, p.x()), x_hi = std::max(x_hi, p.x());
+      y_lo = std::min(y_lo, p.y()), y_hi = std::max(y_hi, p.y());
+    }
+  }
+  const int c0 = std::max(0, static_cast<int>(std::floor(x_lo))), c1 = std::min(grey.cols - 1, static_cast<int>(std::ceil(x_hi)));
+  const int r0 = std::max(0, static_cast<int>(std::floor(y_lo))), r1 = std::min(grey.rows - 1, static_cast<int>(std::ceil(y_hi)));
+  std::vector<Sample> out;
+  for (int y = r0; y <= r1; ++y) {
+    const auto* row = grey.ptr<std::uint8_t>(y);
+    for (int x = c0; x <= c1; ++x) {
+      const Eigen::Vector2d p(x, y);
+      const Eigen::Vector2d q = p - e.origin;
+      const double t = e.d.dot(q);
+      if (t < t0 || t > t1) continue;
+      const double tau = t / e.length - 0.5;
+      const double s = e.n.dot(q);
+      const double across = s - (curve ? curve->f(tau) : 0.0);
+      if (std::abs(across) > w) continue;
+      if (across < delta && (neighbours[0].inward.dot(p - neighbours[0].corner) < delta ||
+                             neighbours[1].inward.dot(p - neighbours[1].corner) < delta)) {
+        continue;
+      }
+      out.push_back({tau, s, static_cast<double>(row[x])});
+    }
+  }
+  return out;
+}
+
+// The model's value at a sample, for parameters laid out as below (NC = D + 1 curve coefficients).
+// Shading: a = a0 + a1 tau + a2 s, b = b0 + b1 tau + b2 s (s in px): on a curved part the light
+// changes along and across the edge, and an unmodelled slope across it would shift the edge.
+template <int NC, typename Vec>
+double model_value(const Vec& p, const Sample& smp, Response* out = nullptr) {
+  double f = 0;
+  for (int j = NC - 1; j >= 0; --j) f = f * smp.tau + p[j];
+  const Response resp = edge_response(smp.s - f, p[NC]);
+  if (out) *out = resp;
+  const double a = p[NC + 1] + p[NC + 2] * smp.tau + p[NC + 3] * smp.s;
+  const double b = p[NC + 4] + p[NC + 5] * smp.tau + p[NC + 6] * smp.s;
+  return a + b * resp.r;
+}
+
+// Levenberg-Marquardt fit of the edge model to the band samples. Parameter layout (NC = D + 1):
+//   x[0..D] = c_0..c_D (px), x[NC] = sigma (px), x[NC+1..NC+3] = a0 a1 a2, x[NC+4..NC+6] = b0 b1 b2
+// Residual r_i = I_i - m(tau_i, s_i; x); the Jacobian J = dm/dx:
+//   dm/dc_j = -b R'(s - f) tau^j,  dm/dsigma = b dR/dsigma,
+//   dm/d(a0, a1, a2) = (1, tau, s),  dm/d(b0, b1, b2) = (1, tau, s) R.
+// Step: (J^T J + lambda diag(J^T J)) dx = J^T r (Marquardt's scaling); lambda is divided by 3 after
+// a successful step and doubled after a failed one. Stops when the curve moves less than
+// `tolerance_px`. `ok` is false if it cannot decrease the cost at all. `top_z` is the highest
+// curve coefficient over its standard error, |c_D| / sqrt(s^2 [(J^T J)^-1]_DD) with
+// s^2 = cost / (N - P): below ~3 the data do not need that degree.
+struct ModelFit {
+  bool ok = false;
+  double top_z = 0;
+};
+
+template <int NC>
+ModelFit fit_edge_model(const std::vector<Sample>& samples, int max_iterations, double max_sigma, double tolerance_px,
+                    Eigen::VectorXd& x_io) {
+  constexpr int P = NC + 7;
+  using Vec = Eigen::Matrix<double, P, 1>;
+  using Mat = Eigen::Matrix<double, P, P>;
+  auto evaluate = [&](const Vec& p, Mat* JtJ, Vec* Jtr) {
+    double cost = 0;
+    Mat A = Mat::Zero();
+    Vec g = Vec::Zero();
+    Vec row;
+    for (const Sample& smp : samples) {
+      Response resp;
+      const double r = smp.value - model_value<NC>(p, smp, &resp);
+      cost += r * r;
+      if (!JtJ) continue;
+      const double b = p[NC + 4] + p[NC + 5] * smp.tau + p[NC + 6] * smp.s;
+      double tj = 1;
+      for (int j = 0; j < NC; ++j, tj *= smp.tau) row[j] = -b * resp.dr_dx * tj;
+      row[NC] = b * resp.dr_dsigma;
+      row[NC + 1] = 1;
+      row[NC + 2] = smp.tau;
+      row[NC + 3] = smp.s;
+      row[NC + 4] = resp.r;
+      row[NC + 5] = smp.tau * resp.r;
+      row[NC + 6] = smp.s * resp.r;
+      A.noalias() += row * row.transpose();
+      g += r * row;
+    }
+    if (JtJ) {
+      *JtJ = A;
+      *Jtr = g;
+    }
+    return cost;
+  };
+  Vec x = x_io;
+  Mat JtJ;
+  Vec Jtr;
+  double cost = evaluate(x, &JtJ, &Jtr);
+  double lambda = 1e-3;
+  bool improved = false;
+  for (int it = 0; it < max_iterations; ++it) {
+    Mat A = JtJ;
+    A.diagonal() += lambda * JtJ.diagonal().cwiseMax(1e-12);
+    const Vec dx = A.ldlt().solve(Jtr);
+    if (!dx.allFinite()) break;
+    Vec trial = x + dx;
+    trial[NC] = std::clamp(trial[NC], kMinSigmaPx, max_sigma * 2);
+    const double trial_cost = evaluate(trial, nullptr, nullptr);
+    if (trial_cost < cost) {
+      const Vec step = trial - x;  // sigma may have been clamped
+      x = trial;
+      cost = trial_cost;
+      improved = true;
+      lambda = std::max(lambda / 3, 1e-9);
+      // |df(tau)| <= sum_j |dc_j| 2^-j over tau in [-1/2, 1/2].
+      double curve_step = 0;
+      for (int j = 0; j < NC; ++j) curve_step += std::abs(step[j]) * std::ldexp(1.0, -j);
+      if (curve_step < tolerance_px && std::abs(step[NC]) < tolerance_px) break;
+      cost = evaluate(x, &JtJ, &Jtr);
+    } else {
+      lambda *= 2;
+      if (lambda > 1e8) break;
+    }
+  }
+  x_io = x;
+  ModelFit result;
+  result.ok = improved || cost == 0;
+  cost = evaluate(x, &JtJ, &Jtr);
+  const double dof = static_cast<double>(samples.size()) - P;
+  const double var = JtJ.inverse()(NC - 1, NC - 1) * cost / std::max(1.0, dof);
+  result.top_z = var > 0 ? std::abs(x[NC - 1]) / std::sqrt(var) : 0;
+  return result;
+}
+
+// RMS residual of the fitted model.
+template <int NC>
+double model_rms(const std::vector<Sample>& samples, const Eigen::VectorXd& x) {
+  double sum_sq = 0;
+  for (const Sample& smp : samples) {
+    const double r = smp.value - model_value<NC>(x, smp);
+    sum_sq += r * r;
+  }
+  return std::sqrt(sum_sq / static_cast<double>(samples.size()));
+}
+
+double model_rms(const std::vector<Sample>& samples, int degree, const Eigen::VectorXd& x) {
+  switch (degree) {
+    case 1: return model_rms<2>(samples, x);
+    case 2: return model_rms<3>(samples, x);
+    default: return model_rms<4>(samples, x);
+  }
+}
+
+ModelFit fit_edge_model(const std::vector<Sample>& samples, int degree, int max_iterations, double max_sigma,
+                        double tolerance_px, Eigen::VectorXd& x) {
+  switch (degree) {
+    case 1: return fit_edge_model<2>(samples, max_iterations, max_sigma, tolerance_px, x);
+    case 2: return fit_edge_model<3>(samples, max_iterations, max_sigma, tolerance_px, x);
+    default: return fit_edge_model<4>(samples, max_iterations, max_sigma, tolerance_px, x);
+  }
+}
+
+struct EdgeFitResult {
+  std::optional<EdgeCurve> curve;
+  std::string failure;
+};
+
+// Fits one edge over t in [lo, hi] with band half-width w: a first fit on a band around the
+// initial straight edge, then one on a band that follows the fitted curve, with the neighbouring
+// edges kept out by the fitted blur (delta = 3 sigma + 1/2). The polynomial degree is at most
+// L / options.min_px_per_degree for a stretch of L px: a cubic fitted to a few pixels
+// extrapolates badly.
+EdgeFitResult fit_edge(const cv::Mat& grey, const EdgeFrame& frame, double lo, double hi,
+                       const std::array<NeighbourEdge, 2>& neighbours, double w, const EdgeFitOptions& o) {
+  EdgeCurve curve;
+  curve.frame = frame;
+  int degree = o.degree;
+  Eigen::VectorXd x;
+  const EdgeCurve* band_curve = nullptr;
+  double sigma = o.initial_blur_px;
+  for (int round = 0; round < 2; ++round) {
+    const double delta = 3 * sigma + 0.5;
+    // The transition is clear of the neighbours from delta / sin(alpha) on.
+    const double t0 = std::max(lo, delta / neighbours[0].sin_a);
+    const double t1 = std::min(hi, frame.length - delta / neighbours[1].sin_a);
+    if (t1 - t0 < o.min_fit_length_px) return {std::nullopt, "edge too short to fit clear of the corners"};
+    if (round == 0) {
+      degree = std::clamp(static_cast<int>((t1 - t0) / o.min_px_per_degree), 1, o.degree);
+      x = Eigen::VectorXd::Zero(degree + 8);
+    }
+    const auto samples = band_samples(grey, frame, std::max(lo, 0.0), std::min(hi, frame.length), w, band_curve,
+                                      neighbours, delta);
+    if (static_cast<int>(samples.size()) < std::max(o.min_pixels_per_edge, degree + 8)) {
+      return {std::nullopt, "too few pixels along an edge (" + std::to_string(samples.size()) + ")"};
+    }
+    if (round == 0) {
+      // Start: the initial line, a sharp edge, black and white levels from the band's extremes.
+      std::vector<double> values;
+      for (const Sample& s : samples) values.push_back(s.value);
+      const auto lo_it = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 10);
+      const auto hi_it = values.begin() + static_cast<std::ptrdiff_t>(values.size() * 9 / 10);
+      std::nth_element(values.begin(), lo_it, values.end());
+      const double dark = *lo_it;
+      std::nth_element(values.begin(), hi_it, values.end());
+      x[degree + 1] = o.initial_blur_px;
+      x[degree + 2] = dark;
+      x[degree + 5] = *hi_it - dark;
+    }
+    auto fit = [&] {
+      // The first round only places the band: a coarse tolerance will do.
+      const double tolerance = round == 0 ? 10 * o.tolerance_px : o.tolerance_px;
+      const ModelFit f = fit_edge_model(samples, degree, o.max_iterations, o.max_blur_px, tolerance, x);
+      return f.ok && x.allFinite() ? std::optional<ModelFit>(f) : std::nullopt;
+    };
+    auto result = fit();
+    if (!result) return {std::nullopt, "edge fit did not converge"};
+    // Occam's razor on the final band: drop the highest curve coefficient while it is not
+    // significant, so straight edges are not fitted with wiggles that extrapolate badly.
+    while (round == 1 && degree > 1 && result->top_z < o.degree_significance) {
+      Eigen::VectorXd lower(x.size() - 1);
+      lower << x.head(degree), x.tail(7);
+      x = lower;
+      --degree;
+      result = fit();
+      if (!result) return {std::nullopt, "edge fit did not converge"};
+    }
+    curve.c = x.head(degree + 1);
+    sigma = curve.sigma = x[degree + 1];
+    curve.contrast = x[degree + 5];
+    curve.rms = model_rms(samples, degree, x);
+    band_curve = &curve;
+  }
+  if (!(curve.contrast >= o.min_contrast)) {
+    return {std::nullopt, "edge contrast " + std::to_string(static_cast<int>(std::lround(curve.contrast))) +
+                              " grey levels is below " + std::to_string(static_cast<int>(o.min_contrast))};
+  }
+  if (curve.sigma > o.max_blur_px) return {std::nullopt, "edge blur sigma " + std::to_string(curve.sigma) + " px too large"};
+  if (curve.rms > o.max_residual * curve.contrast) return {std::nullopt, "edge does not look like a step (fit residual too large)"};
+  return {curve, ""};
+}
+
+// Corner where two edge curves meet: Newton's method on (g_a, g_b)(p) = 0 from p.
+std::optional<Eigen::Vector2d> intersect(const EdgeCurve& a, const EdgeCurve& b, Eigen::Vector2d p) {
+  for (int it = 0; it < 30; ++it) {
+    Eigen::Matrix2d J;
+    J.row(0) = a.grad(p).transpose();
+    J.row(1) = b.grad(p).transpose();
+    if (std::abs(J.determinant()) < 1e-6) return std::nullopt;
+    const Eigen::Vector2d dp = -J.inverse() * Eigen::Vector2d(a.g(p), b.g(p));
+    p += dp;
+    if (!p.allFinite()) return std::nullopt;
+    if (dp.norm() < 1e-10) return p;
+  }
+  return p;
+}
+
+double interior_angle(const std::array<Eigen::Vector2d, 4>& q, int k) {
+  const Eigen::Vector2d u = (q[(k + 1) % 4] - q[k]).normalized(), v = (q[(k + 3) % 4] - q[k]).normalized();
+  return std::acos(std::clamp(u.dot(v), -1.0, 1.0));
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+
+MarkerDictionary MarkerDictionary::predefined(const std::string& name) {
+  MarkerDictionary d;
+  d.dictionary_ = cv::aruco::getPredefinedDictionary(aruco_dictionary_id(name));
+  d.name_ = name;
+  return d;
+}
+
+MarkerDictionary MarkerDictionary::from_file(const std::string& path) {
+  if (!std::ifstream(path)) throw InputError(path, 0, "cannot open dictionary file");
+  cv::FileStorage fs;
+  try {
+    fs.open(path, cv::FileStorage::READ);
+  } catch (const cv::Exception&) {
+    throw InputError(path, 0, "not an OpenCV YAML/XML dictionary file (cv::FileStorage cannot parse it)");
+  }
+  if (!fs.isOpened()) throw InputError(path, 0, "not an OpenCV YAML/XML dictionary file");
+  const cv::FileNode root = fs.root();
+  auto int_key = [&](const std::string& key, bool required, int fallback, int lo, int hi) {
+    const cv::FileNode n = root[key];
+    if (n.empty()) {
+      if (required) throw InputError(path, 0, "missing key '" + key + "'");
+      return fallback;
+    }
+    if (!n.isInt()) throw InputError(path, 0, "'" + key + "' must be an integer");
+    const int v = static_cast<int>(n);
+    if (v < lo || v > hi) {
+      throw InputError(path, 0, "'" + key + "' must be in " + std::to_string(lo) + ".." + std::to_string(hi));
+    }
+    return v;
+  };
+  const int count = int_key("nmarkers", true, 0, 1, 100000);
+  const int size = int_key("markersize", true, 0, 2, 16);
+  const int correction = int_key("maxCorrectionBits", false, 0, 0, size * size);
+  cv::Mat bytes;
+  cv::Mat bits(size, size, CV_8UC1);
+  for (int i = 0; i < count; ++i) {
+    const std::string key = "marker_" + std::to_string(i);
+    const cv::FileNode n = root[key];
+    if (n.empty()) throw InputError(path, 0, "missing key '" + key + "' (nmarkers is " + std::to_string(count) + ")");
+    if (!n.isString()) throw InputError(path, 0, "'" + key + "' must be a string of bits");
+    const std::string s = static_cast<std::string>(n);
+    if (static_cast<int>(s.size()) != size * size || s.find_first_not_of("01") != std::string::npos) {
+      throw InputError(path, 0, "'" + key + "' must be " + std::to_string(size * size) + " characters '0' or '1'");
+    }
+    for (int j = 0; j < size * size; ++j) bits.at<std::uint8_t>(j / size, j % size) = s[static_cast<std::size_t>(j)] == '1';
+    bytes.push_back(cv::aruco::Dictionary::getByteListFromBits(bits));
+  }
+  MarkerDictionary d;
+  d.dictionary_ = cv::makePtr<cv::aruco::Dictionary>(bytes, size, correction);
+  d.name_ = path;
+  return d;
+}
+
+int MarkerDictionary::marker_count() const { return dictionary_->bytesList.rows; }
+int MarkerDictionary::bits_per_side() const { return dictionary_->markerSize; }
+int MarkerDictionary::max_correction_bits() const { return dictionary_->maxCorrectionBits; }
+
+const std::vector<std::string>& corner_refinement_names() {
+  static const std::vector<std::string> names{"edges", "subpix", "contour", "none"};
+  return names;
+}
+
+CornerRefinement corner_refinement_from_name(const std::string& name) {
+  const auto& names = corner_refinement_names();
+  const auto it = std::find(names.begin(), names.end(), name);
+  if (it == names.end()) throw UsageError("unknown corner refinement '" + name + "'");
+  return static_cast<CornerRefinement>(it - names.begin());
+}
+
+std::vector<Observation> MarkerDetection::observations() const {
+  std::vector<Observation> out;
+  for (std::size_t k = 0; k < marker_ids.size(); ++k) {
+    for (int c = 0; c < 4; ++c) {
+      out.push_back({image, static_cast<PointId>(marker_ids[k]) * 4 + c, corners[k][c].x(), corners[k][c].y()});
+    }
+  }
+  std::sort(out.begin(), out.end(), [](const Observation& a, const Observation& b) { return a.point_id < b.point_id; });
+  return out;
+}
+
+EdgeFit refine_marker_corners(const cv::Mat& grey, const std::array<Eigen::Vector2d, 4>& q, int cells,
+                              const EdgeFitOptions& o) {
+  CV_Assert(grey.type() == CV_8UC1);
+  EdgeFit result;
+  result.corners = q;
+  if (o.degree < 1 || o.degree > 3 || !(o.span > 0 && o.span <= 1)) throw UsageError("bad edge-fit options");
+  const Eigen::Vector2d centre = 0.25 * (q[0] + q[1] + q[2] + q[3]);
+  std::array<EdgeFrame, 4> frames;
+  std::array<double, 4> window{};
+  std::array<double, 4> sin_angle{};
+  double mean_side = 0;
+  for (int e = 0; e < 4; ++e) {
+    EdgeFrame& f = frames[e];
+    f.origin = q[e];
+    const Eigen::Vector2d v = q[(e + 1) % 4] - q[e];
+    f.length = v.norm();
+    if (!(f.length > 1)) {
+      result.failure = "degenerate quadrilateral";
+      return result;
+    }
+    f.d = v / f.length;
+    f.n = Eigen::Vector2d(-f.d.y(), f.d.x());
+    if (f.n.dot(centre - q[e]) > 0) f.n = -f.n;  // outwards, towards the white quiet zone
+    mean_side += 0.25 * f.length;
+    const double angle = interior_angle(q, e);
+    sin_angle[e] = std::sin(angle);
+    if (sin_angle[e] < 0.2) {
+      result.failure = "corner angle too acute";
+      return result;
+    }
+  }
+  for (int e = 0; e < 4; ++e) {
+    // Across edge e, the marker extends as far as its neighbouring edges are long.
+    const double across = std::min(frames[(e + 3) % 4].length, frames[(e + 1) % 4].length) / cells;
+    window[e] = std::clamp(o.window_cells * across, o.min_window_px, o.max_window_px);
+  }
+  // fits[k][0]: the edge ending at corner k (edge k-1); fits[k][1]: the edge starting there (edge k).
+  std::array<std::array<std::optional<EdgeCurve>, 2>, 4> fits;
+  double blur = 0;
+  result.contrast = 1e300;
+  auto take = [&](const EdgeFitResult& r) -> std::optional<EdgeCurve> {
+    if (!r.curve) {
+      if (result.failure.empty()) result.failure = r.failure;
+      return std::nullopt;
+    }
+    blur += r.curve->sigma;
+    result.contrast = std::min(result.contrast, r.curve->contrast);
+    result.residual = std::max(result.residual, r.curve->rms / r.curve->contrast);
+    return r.curve;
+  };
+  int n_fits = 0;
+  for (int e = 0; e < 4; ++e) {
+    const double L = frames[e].length;
+    // Edge e runs from corner e to corner e+1; its neighbours there are edges e-1 and e+1.
+    auto inward = [&](int from, int to) {
+      const Eigen::Vector2d v = (q[to] - q[from]).normalized();
+      Eigen::Vector2d m(-v.y(), v.x());
+      return m.dot(centre - q[from]) < 0 ? Eigen::Vector2d(-m) : m;
+    };
+    const std::array<NeighbourEdge, 2> nb{NeighbourEdge{q[e], inward(e, (e + 3) % 4), sin_angle[e]},
+                                          NeighbourEdge{q[(e + 1) % 4], inward((e + 1) % 4, (e + 2) % 4),
+                                                        sin_angle[(e + 1) % 4]}};
+    if (o.span >= 1) {
+      const auto curve = take(fit_edge(grey, frames[e], 0, L, nb, window[e], o));
+      ++n_fits;
+      if (!curve) return result;
+      fits[e][1] = curve;
+      fits[(e + 1) % 4][0] = curve;
+    } else {
+      const auto first = take(fit_edge(grey, frames[e], 0, o.span * L, nb, window[e], o));
+      const auto second = take(fit_edge(grey, frames[e], (1 - o.span) * L, L, nb, window[e], o));
+      n_fits += 2;
+      if (!first || !second) return result;
+      fits[e][1] = first;
+      fits[(e + 1) % 4][0] = second;
+    }
+  }
+  result.blur_px = blur / n_fits;
+  const double cell = mean_side / cells;
+  const double max_shift = std::max(o.min_max_shift_px, o.max_shift_cells * cell);
+  for (int k = 0; k < 4; ++k) {
+    const auto p = intersect(*fits[k][0], *fits[k][1], q[k]);
+    if (!p) {
+      result.failure = "edges of corner " + std::to_string(k) + " do not intersect";
+      return result;
+    }
+    // An error e across each edge moves an acute corner by e / sin(alpha / 2) along its bisector:
+    // OpenCV's polygon corners are that much worse there, so the allowance grows the same way.
+    const double allowed = max_shift * std::max(1.0, std::sin(M_PI / 4) / std::sin(interior_angle(q, k) / 2));
+    if ((*p - q[k]).norm() > allowed) {
+      result.failure = "corner " + std::to_string(k) + " moved " + std::to_string((*p - q[k]).norm()) +
+                       " px from OpenCV's (more than " + std::to_string(allowed) + ")";
+      return result;
+    }
+    result.corners[k] = *p;
+  }
+  result.ok = true;
+  return result;
+}
+
+MarkerDetection detect_markers(const cv::Mat& grey, const std::string& image_name, const MarkerDictionary& dictionary,
+                               const MarkerDetectOptions& options) {
+  CV_Assert(grey.type() == CV_8UC1);
+  MarkerDetection out;
+  out.image = image_name;
+  out.width_px = grey.cols;
+  out.height_px = grey.rows;
+  auto params = cv::aruco::DetectorParameters::create();
+  params->errorCorrectionRate = options.error_correction_rate;
+  switch (options.refinement) {
+    case CornerRefinement::Subpix:
+      // Tighter than OpenCV's defaults (0.1 px, 30 iterations), so the comparison is fair to it.
+      params->cornerRefinementMethod = cv::aruco::CORNER_REFINE_SUBPIX;
+      params->cornerRefinementMinAccuracy = 0.001;
+      params->cornerRefinementMaxIterations = 100;
+      break;
+    case CornerRefinement::Contour: params->cornerRefinementMethod = cv::aruco::CORNER_REFINE_CONTOUR; break;
+    case CornerRefinement::Edges:
+    case CornerRefinement::None: params->cornerRefinementMethod = cv::aruco::CORNER_REFINE_NONE; break;
+  }
+  std::vector<std::vector<cv::Point2f>> corners;
+  std::vector<int> ids;
+  cv::aruco::detectMarkers(grey, cv::Ptr<cv::aruco::Dictionary>(dictionary.opencv()), corners, ids, params);
+  std::map<int, int> seen;
+  for (int id : ids) ++seen[id];
+  const int cells = dictionary.bits_per_side() + 2;
+  std::vector<std::size_t> order(ids.size());
+  for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return ids[a] < ids[b]; });
+  for (std::size_t k : order) {
+    const int id = ids[k];
+    if (seen[id] > 1) {
+      out.rejected.push_back({id, "id found " + std::to_string(seen[id]) + " times in this image"});
+      continue;
+    }
+    std::array<Eigen::Vector2d, 4> q;
+    for (int c = 0; c < 4; ++c) q[c] = {corners[k][c].x, corners[k][c].y};
+    if (options.refinement == CornerRefinement::Edges) {
+      const EdgeFit fit = refine_marker_corners(grey, q, cells, options.edges);
+      if (!fit.ok) {
+        out.rejected.push_back({id, fit.failure});
+        continue;
+      }
+      q = fit.corners;
+    }
+    out.marker_ids.push_back(id);
+    out.corners.push_back(q);
+  }
+  return out;
+}
+
+std::vector<ScaleBar> marker_scale_bars(const std::vector<int>& ids, double side_mm) {
+  std::vector<int> sorted = ids;
+  std::sort(sorted.begin(), sorted.end());
+  sorted.erase(std::unique(sorted.begin(), sorted.end()), sorted.end());
+  std::vector<ScaleBar> bars;
+  for (int id : sorted) {
+    for (int c = 0; c < 4; ++c) {
+      bars.push_back({static_cast<PointId>(id) * 4 + c, static_cast<PointId>(id) * 4 + (c + 1) % 4, side_mm, {}});
+    }
+  }
+  return bars;
+}
+
+}  // namespace photomill::detect

@@ -1,0 +1,74 @@
+// SIFT features and the marker mask (contract in sift.hpp).
+#include "detect/sift.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "formats/error.hpp"
+
+namespace photomill::detect {
+
+void validate(const SiftOptions& o) {
+  if (o.max_features < 0) throw UsageError("--max-features must be 0 (no cap) or positive");
+  if (o.octave_layers < 1 || o.octave_layers > 10) throw UsageError("--sift-octave-layers must be in 1..10");
+  if (!(o.contrast_threshold >= 0) || !std::isfinite(o.contrast_threshold)) {
+    throw UsageError("--sift-contrast-threshold must be a non-negative number");
+  }
+  if (!(o.edge_threshold > 0) || !std::isfinite(o.edge_threshold)) throw UsageError("--sift-edge-threshold must be positive");
+  if (!(o.sigma > 0) || !std::isfinite(o.sigma)) throw UsageError("SIFT sigma must be positive");
+  if (!std::isfinite(o.position_offset_px)) throw UsageError("SIFT position offset must be finite");
+}
+
+FeatureSet detect_sift(const cv::Mat& grey, const std::string& image_name, const SiftOptions& o, const cv::Mat& mask) {
+  CV_Assert(grey.type() == CV_8UC1);
+  CV_Assert(mask.empty() || (mask.type() == CV_8UC1 && mask.size() == grey.size()));
+  // OpenCV keeps the `max_features` best by response itself (KeyPointsFilter::retainBest).
+  const auto sift = cv::SIFT::create(o.max_features, o.octave_layers, o.contrast_threshold, o.edge_threshold, o.sigma,
+                                     CV_8U);
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat descriptors;
+  sift->detectAndCompute(grey, mask, keypoints, descriptors);
+  FeatureSet fs;
+  fs.image = image_name;
+  fs.image_width_px = grey.cols;
+  fs.image_height_px = grey.rows;
+  fs.descriptor_dim = descriptors.empty() ? 128 : descriptors.cols;
+  std::vector<std::size_t> order(keypoints.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return keypoints[a].response > keypoints[b].response; });
+  fs.keypoints.reserve(order.size());
+  fs.descriptors.reserve(order.size() * static_cast<std::size_t>(fs.descriptor_dim));
+  for (std::size_t k : order) {
+    const cv::KeyPoint& kp = keypoints[k];
+    fs.keypoints.push_back({kp.pt.x + o.position_offset_px, kp.pt.y + o.position_offset_px, kp.size, kp.angle,
+                            kp.response});
+    const auto* row = descriptors.ptr<std::uint8_t>(static_cast<int>(k));
+    fs.descriptors.insert(fs.descriptors.end(), row, row + fs.descriptor_dim);
+  }
+  return fs;
+}
+
+cv::Mat marker_mask(cv::Size size, const std::vector<std::array<Eigen::Vector2d, 4>>& markers, int cells,
+                    double margin_cells) {
+  cv::Mat mask(size, CV_8UC1, cv::Scalar(255));
+  // Growing a marker by m cells on every side scales it about its centre by (cells + 2m) / cells
+  // (exact for a parallelogram, close enough under perspective).
+  const double scale = (cells + 2 * margin_cells) / cells;
+  for (const auto& q : markers) {
+    const Eigen::Vector2d c = 0.25 * (q[0] + q[1] + q[2] + q[3]);
+    std::vector<cv::Point> poly;
+    for (const auto& p : q) {
+      const Eigen::Vector2d g = c + scale * (p - c);
+      poly.emplace_back(static_cast<int>(std::lround(g.x())), static_cast<int>(std::lround(g.y())));
+    }
+    cv::fillConvexPoly(mask, poly, cv::Scalar(0));
+  }
+  return mask;
+}
+
+}  // namespace photomill::detect

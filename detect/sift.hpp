@@ -1,0 +1,44 @@
+// Natural features for match: SIFT keypoints and descriptors (Lowe 2004, as OpenCV 4.6's
+// cv::SIFT computes them) of one grey image, optionally masked away from the markers, capped at
+// the strongest N, as a FeatureSet (formats/features.hpp, "photomill-features v1").
+#pragma once
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "formats/features.hpp"
+
+namespace photomill::detect {
+
+struct SiftOptions {
+  int max_features = 8000;          // strongest keypoints kept per image (by response); 0: all
+  int octave_layers = 3;            // Lowe's s: scales sampled per octave
+  double contrast_threshold = 0.04; // OpenCV's default; OpenCV divides it by s (Lowe's 0.03 is 0.09)
+  double edge_threshold = 10;       // Lowe's r: principal-curvature ratio limit
+  double sigma = 1.6;               // Lowe's sigma of the first octave
+  // OpenCV 4.6 reports keypoints in the coordinates of its 2x upsampled first octave halved,
+  // without the half-pixel term of the upsampling: a keypoint at x' there is x'/2 - 1/4 in the
+  // image (resize maps dst x' to src (x' + 1/2)/2 - 1/2), not x'/2 (opencv/opencv#23123). This
+  // offset is added to x and y of every keypoint; sift_test.cpp measures OpenCV's +0.25 px on
+  // Gaussian blobs at known positions. 0 keeps OpenCV's coordinates.
+  double position_offset_px = -0.25;
+};
+
+// Validates the options; throws UsageError.
+void validate(const SiftOptions& options);
+
+// SIFT on one grey image (CV_8UC1). `mask` (CV_8UC1, same size, or empty): keypoints only where
+// it is non-zero. Keypoints sorted by decreasing response; descriptors as OpenCV's CV_8U SIFT.
+FeatureSet detect_sift(const cv::Mat& grey, const std::string& image_name, const SiftOptions& options,
+                       const cv::Mat& mask = cv::Mat());
+
+// A mask (255 = features allowed) that blanks every marker quadrilateral grown by `margin_cells`
+// marker cells on every side (its quiet zone), `cells` = bits per side + 2.
+cv::Mat marker_mask(cv::Size size, const std::vector<std::array<Eigen::Vector2d, 4>>& markers, int cells,
+                    double margin_cells);
+
+}  // namespace photomill::detect
