@@ -1,13 +1,26 @@
-// fitsurf: least-squares B-spline surface from a point cloud.
-// Not built yet (issue #7): only --help and --version work; running it says so and exits 1.
-#include "formats/error.hpp"
+// fitsurf: least-squares B-spline surface from a point cloud (issue #7; method in docs/fitsurf.md).
+// Reads a point cloud (PLY or x y z text, a file or stdin), selects the part, fits, and writes the
+// surface text to stdout or -o, plus STEP, IGES, a mesh, a JSON report and residuals on request.
+#include "fitsurf/cli.hpp"
+#include "fitsurf/fitsurf.hpp"
+#include "fitsurf/report.hpp"
+#include "formats/log.hpp"
+#include "formats/point_cloud.hpp"
 #include "formats/tool.hpp"
 
 int main(int argc, char** argv) {
-  std::vector<std::string> inputs;
-  return photomill::tool::run(
+  using namespace photomill;
+  fitsurf::Cli cli;
+  return tool::run(
       argc, argv,
-      {"fitsurf", "least-squares B-spline surface from a point cloud (not built yet, issue #7)", "fitsurf --help"},
-      [&](CLI::App& app) { app.add_option("inputs", inputs, "Input files ('-' for stdin)"); },
-      [] { throw std::runtime_error("this stage is not built yet (issue #7); no output written"); });
+      {"fitsurf", "least-squares B-spline surface from a point cloud (PLY or x y z text)",
+       "cat scan.xyz | fitsurf --drop-plane --net 30x30 --step part.step --report fit.json > part.surf"},
+      [&](CLI::App& app) { fitsurf::add_options(app, cli); },
+      [&] {
+        const fitsurf::Options options = fitsurf::to_options(cli);
+        const PointCloud cloud = read_point_cloud(*tool::open_input(cli.input), tool::source_name(cli.input));
+        const fitsurf::Result result = fitsurf::fit_point_cloud(cloud, options);
+        for (const auto& line : fitsurf::summary(result, options)) log::info(line);
+        fitsurf::write_outputs(cli, options, cloud, result);
+      });
 }

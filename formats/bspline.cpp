@@ -31,7 +31,7 @@ int find_span(int n, int p, double u, const std::vector<double>& U) {
 void basis_funs(int i, double u, int p, const std::vector<double>& U, double* N) {
   // A2.2: N[0] = 1; N[j] from the triangular recurrence with left[j] = u - U[i+1-j],
   // right[j] = U[i+j] - u.
-  std::array<double, kMaxBSplineDegree + 2> left{}, right{};
+  std::array<double, kMaxBSplineDegree + 2> left, right;  // entries 1..p written before use
   N[0] = 1.0;
   for (int j = 1; j <= p; ++j) {
     left[static_cast<std::size_t>(j)] = u - U[static_cast<std::size_t>(i + 1 - j)];

@@ -288,9 +288,9 @@ int main(int argc, char** argv) {
         truth->needs(outputs);
         outputs->needs(truth);
         work->excludes(truth);
-        app.require_option(1, 2);
       },
       [&] {
+        if (work_dir.empty() && truth_dir.empty()) throw UsageError("give --work-dir DIR, or --truth DIR --outputs DIR");
         const Bounds bounds;
         Report report;
         if (!truth_dir.empty()) {

@@ -1,0 +1,213 @@
+// fitsurf_bench: speed and accuracy figures of fitsurf's method on the analytic test shapes
+// (fitsurf/test_shapes.hpp), printed as a table for docs/fitsurf.md. Not a test: it asserts
+// nothing; scripts/bench-fitsurf.sh runs it with the machine load alongside.
+//   fitsurf_bench [--threads N] [--repeat R] [--quick]
+//   fitsurf_bench --write-cloud FILE.ply|FILE.xyz [--points N] [--shape NAME]   (input for CLI timing)
+#include <algorithm>
+#include <chrono>
+#include <ctime>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "fitsurf/fit.hpp"
+#include "fitsurf/fitsurf.hpp"
+#include "fitsurf/outline.hpp"
+#include "fitsurf/parallel.hpp"
+#include "fitsurf/report.hpp"
+#include "fitsurf/test_shapes.hpp"
+#include "formats/log.hpp"
+#include "formats/point_cloud.hpp"
+
+namespace {
+
+using namespace photomill;
+using namespace photomill::fitsurf;
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+struct Times {
+  std::vector<double> wall, cpu;  // seconds, sorted
+};
+
+// Wall time and process CPU time (all threads) of each run: with other work on the machine the
+// wall time grows, the CPU time much less.
+template <typename F>
+Times timed(int repeat, F&& f) {
+  Times t;
+  for (int r = 0; r < repeat; ++r) {
+    const auto t0 = Clock::now();
+    const std::clock_t c0 = std::clock();
+    f();
+    t.cpu.push_back(static_cast<double>(std::clock() - c0) / CLOCKS_PER_SEC);
+    t.wall.push_back(seconds_since(t0));
+  }
+  std::sort(t.wall.begin(), t.wall.end());
+  std::sort(t.cpu.begin(), t.cpu.end());
+  return t;
+}
+
+void print_times(const char* what, const Times& t) {
+  std::printf("%-60s wall min %.3f s median %.3f s | cpu median %.3f s (%zu runs)\n", what, t.wall.front(),
+              t.wall[t.wall.size() / 2], t.cpu[t.cpu.size() / 2], t.wall.size());
+}
+
+PointCloud cloud_of(const std::vector<Eigen::Vector3d>& pts) {
+  PointCloud c;
+  c.points_mm = pts;
+  return c;
+}
+
+test::TruthDeviation truth(const FitResult& fit, const test::Shape& s) {
+  const auto& b = fit.surface.boundary_uv;
+  return test::compare_with_truth(fit.surface, s, 150, [&](const Eigen::Vector2d& uv) {
+    return b.empty() ? true : point_in_polygon(b, uv);
+  });
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int threads = 0, repeat = 3;
+  bool quick = false;
+  std::string write_cloud, shape_name = "bumps";
+  std::size_t points = 100000;
+  for (int k = 1; k < argc; ++k) {
+    if (!std::strcmp(argv[k], "--threads") && k + 1 < argc) threads = std::atoi(argv[++k]);
+    else if (!std::strcmp(argv[k], "--repeat") && k + 1 < argc) repeat = std::max(1, std::atoi(argv[++k]));
+    else if (!std::strcmp(argv[k], "--quick")) quick = true;
+    else if (!std::strcmp(argv[k], "--write-cloud") && k + 1 < argc) write_cloud = argv[++k];
+    else if (!std::strcmp(argv[k], "--points") && k + 1 < argc) points = std::strtoull(argv[++k], nullptr, 10);
+    else if (!std::strcmp(argv[k], "--shape") && k + 1 < argc) shape_name = argv[++k];
+    else {
+      std::fprintf(stderr,
+                   "usage: fitsurf_bench [--threads N] [--repeat R] [--quick]\n"
+                   "       fitsurf_bench --write-cloud FILE.ply|FILE.xyz [--points N] [--shape NAME]\n");
+      return 2;
+    }
+  }
+  if (!write_cloud.empty()) {
+    // 0.01 mm noise, like the figures below.
+    const PointCloud cloud = cloud_of(test::sample(test::shape(shape_name), points, 0.01, 7));
+    std::ofstream out(write_cloud, std::ios::binary);
+    if (write_cloud.size() > 4 && write_cloud.substr(write_cloud.size() - 4) == ".ply") {
+      write_ply(out, cloud, PlyEncoding::BinaryLittleEndian);
+    } else {
+      write_xyz(out, cloud);
+    }
+    return out ? 0 : 1;
+  }
+  log::set_level(log::Level::Quiet);
+  std::printf("fitsurf_bench: %d worker threads (hardware: %d)\n\n", resolve_threads(threads), resolve_threads(0));
+
+  // Speed 1: 1 000 000 points, 40x40 cubic, one pass (no parameter correction, no reweighting).
+  {
+    const auto pts = test::sample(test::shape("bumps"), quick ? 200000 : 1000000, 0.01, 1);
+    FitOptions o;
+    o.poles_u = o.poles_v = 40;
+    o.parameter_correction = false;
+    o.robust = RobustLoss::None;
+    o.max_rounds = 1;
+    o.threads = threads;
+    o.final_projection = false;
+    FitResult fit;
+    print_times(quick ? "200k points, 40x40, one pass (fit only)" : "1M points, 40x40, one pass (fit only)",
+                timed(repeat, [&] { fit = fit_surface(pts, o); }));
+    o.final_projection = true;
+    print_times("  same + orthogonal residuals of every point (foot points)", timed(repeat, [&] { fit = fit_surface(pts, o); }));
+    std::printf("  deviation from truth: RMS %.5f mm, max %.5f mm\n", truth(fit, test::shape("bumps")).rms_mm,
+                truth(fit, test::shape("bumps")).max_mm);
+  }
+  // Speed 2: the whole default fit of 100 000 points (fitsurf's defaults: 30x30, parameter
+  // correction, outline, fold check, statistics).
+  {
+    const PointCloud cloud = cloud_of(test::sample(test::shape("bumps"), 100000, 0.01, 2));
+    Options o;
+    o.fit.threads = threads;
+    Result r;
+    print_times("100k points, default fit (30x30, correction, outline)",
+                timed(repeat, [&] { r = fit_point_cloud(cloud, o); }));
+    std::printf("  rounds %zu, residual RMS %.5f mm\n", r.fit.round_rms_mm.size(), r.stats.rms_mm);
+  }
+  if (quick) return 0;
+
+  // Accuracy: 100 000 points, noise 0.01 mm: plane projection alone and with parameter
+  // correction, at 30x30 (the done-when net) on every shape, and at coarser nets, where the net
+  // rather than the noise limits the accuracy, on the most curved (steep) and steepest (ridge).
+  std::printf("\n%-8s %-6s %-22s %10s %10s %10s %7s %7s\n", "shape", "net", "method", "truth RMS", "truth max",
+              "resid RMS", "rounds", "wall s");
+  struct Case {
+    std::string shape;
+    int net;
+  };
+  std::vector<Case> cases;
+  for (const auto& s : test::shapes()) cases.push_back({s.name, 30});
+  for (int net : {12, 16, 20}) {
+    cases.push_back({"steep", net});
+    cases.push_back({"ridge", net});
+  }
+  for (const Case& c : cases) {
+    const test::Shape s = test::shape(c.shape);
+    const PointCloud cloud = cloud_of(test::sample(s, 100000, 0.01, 3));
+    for (bool correction : {false, true}) {
+      Options o;
+      o.fit.threads = threads;
+      o.fit.poles_u = o.fit.poles_v = c.net;
+      o.fit.parameter_correction = correction;
+      const auto t0 = Clock::now();
+      const Result r = fit_point_cloud(cloud, o);
+      const double t = seconds_since(t0);
+      const auto dev = truth(r.fit, s);
+      std::printf("%-8s %-6s %-22s %10.5f %10.5f %10.5f %7zu %7.3f\n", s.name.c_str(),
+                  (std::to_string(c.net) + "x" + std::to_string(c.net)).c_str(),
+                  correction ? "plane + correction" : "plane projection only", dev.rms_mm, dev.max_mm, r.stats.rms_mm,
+                  r.fit.round_rms_mm.size(), t);
+    }
+  }
+  // Outliers: 2 % of 100 000 points 0.5-5 mm off the surface; robust reweighting.
+  {
+    const test::Shape s = test::shape("bumps");
+    auto pts = test::sample(s, 100000, 0.01, 25);
+    test::Rng rng(26);
+    for (std::size_t k = 0; k < pts.size(); k += 50) pts[k].z() += (k % 100 ? 1 : -1) * rng.uniform(0.5, 5.0);
+    const PointCloud cloud = cloud_of(pts);
+    std::printf("\n%-34s %10s %10s %9s %7s\n", "bumps, 2 % outliers, 30x30", "truth RMS", "truth max", "outliers",
+                "rounds");
+    for (RobustLoss loss : {RobustLoss::None, RobustLoss::Reject, RobustLoss::Huber, RobustLoss::Tukey}) {
+      Options o;
+      o.fit.threads = threads;
+      o.fit.robust = loss;
+      o.fit.fold.max_slope_deg = 90;  // a plain fit curls at the edge: measure, do not refuse
+      const Result r = fit_point_cloud(cloud, o);
+      const auto dev = truth(r.fit, s);
+      std::printf("%-34s %10.5f %10.5f %9zu %7zu\n",
+                  ("--robust " + to_string(loss)).c_str(),
+                  dev.rms_mm, dev.max_mm, r.fit.outliers, r.fit.round_rms_mm.size());
+    }
+  }
+  // Sparse marker-like points: a jittered grid (15x10: 10 mm apart; 30x20: 5 mm), noise
+  // 0.01 mm, the default smoothing or --noise-mm 0.01; deviation and curvature inside the
+  // points' hull.
+  std::printf("\n%-8s %6s %-16s %9s %10s %10s %9s %9s %6s\n", "shape", "points", "smoothing", "lambda", "truth RMS",
+              "truth max", "max curv", "true curv", "ratio");
+  for (const auto& s : test::shapes()) {
+    for (int nx : {15, 30}) {
+      const PointCloud cloud = cloud_of(test::sample_grid(s, nx, nx * 2 / 3, 45.0 / nx, 0.01, 4));
+      for (double noise : {0.0, 0.01}) {
+        Options o;
+        o.fit.threads = threads;
+        o.fit.noise_mm = noise;
+        o.fit.fold.max_slope_deg = 90;  // report, do not refuse
+        const Result r = fit_point_cloud(cloud, o);
+        const auto dev = truth(r.fit, s);
+        std::printf("%-8s %6zu %-16s %9.3g %10.5f %10.5f %9.5f %9.5f %6.2f\n", s.name.c_str(), cloud.points_mm.size(),
+                    noise > 0 ? "--noise-mm 0.01" : "default", r.fit.smoothing_mm4, dev.rms_mm, dev.max_mm,
+                    dev.max_curvature, dev.true_max_curvature, dev.max_curvature / dev.true_max_curvature);
+      }
+    }
+  }
+  return 0;
+}

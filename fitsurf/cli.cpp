@@ -1,0 +1,200 @@
+// fitsurf's options and outputs (cli.hpp).
+#include "fitsurf/cli.hpp"
+
+#include <charconv>
+#include <memory>
+#include <set>
+
+#include "fitsurf/mesh.hpp"
+#include "fitsurf/report.hpp"
+#include "formats/cad.hpp"
+#include "formats/error.hpp"
+#include "formats/surface.hpp"
+#include "formats/tool.hpp"
+
+namespace photomill::fitsurf {
+
+void add_options(CLI::App& app, Cli& c) {
+  Options& o = c.options;
+  FitOptions& f = o.fit;
+  SelectOptions& s = o.select;
+  app.add_option("input", c.input, "Point cloud: PLY, or x y z text ('-' = stdin)")->capture_default_str();
+
+  const std::string out = "Outputs";
+  app.add_option("-o,--output", c.output, "Surface in photomill's text format ('-' = stdout)")
+      ->capture_default_str()->group(out);
+  app.add_option("--step", c.step, "Also write the surface as STEP (AP214), trimmed by the outline")->group(out);
+  app.add_option("--iges", c.iges, "Also write the surface as IGES 5.3, trimmed by the outline")->group(out);
+  app.add_option("--mesh", c.mesh, "Also write a triangle mesh of the surface: FILE.stl (binary) or FILE.obj")->group(out);
+  app.add_option("--mesh-step-mm", c.mesh_step_mm, "Sample spacing of --mesh, mm")->capture_default_str()->group(out);
+  app.add_option("--report", c.report, "Write a JSON report (residual statistics, net, smoothing, rounds)")->group(out);
+  app.add_option("--residuals", c.residuals,
+                 "Write the fitted points as PLY with scalar fields residual_mm (signed distance) and weight")
+      ->group(out);
+
+  const std::string sel = "Selecting the part";
+  app.add_option("--keep-box", c.keep_box, "Keep only points inside XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (mm)")
+      ->expected(6)->delimiter(',')->group(sel);
+  app.add_option("--keep-above", c.keep_above, "Keep only points with A x + B y + C z + D > 0: A,B,C,D (mm)")
+      ->expected(4)->delimiter(',')->group(sel);
+  app.add_flag("--drop-plane", s.drop_plane,
+               "Drop the dominant plane (RANSAC: the plate) and everything beyond it")->group(sel);
+  app.add_option("--plane-threshold-mm", s.plane_threshold_mm, "Distance within which a point belongs to the plane")
+      ->capture_default_str()->group(sel);
+  app.add_option("--seed", s.seed, "Seed of RANSAC's sampling")->capture_default_str()->group(sel);
+
+  const std::string srf = "Surface";
+  app.add_option("--degree-u", f.degree_u, "Degree p along u")->capture_default_str()->check(CLI::Range(1, 25))->group(srf);
+  app.add_option("--degree-v", f.degree_v, "Degree q along v")->capture_default_str()->check(CLI::Range(1, 25))->group(srf);
+  app.add_option("--net", c.net, "Control net NUxNV (poles along u and v), or N for NxN")->capture_default_str()->group(srf);
+  app.add_option("--knots", c.knots, "Knot placement: clamped uniform, or averaged over the data (NURBS Book 9.69)")
+      ->capture_default_str()->check(CLI::IsMember({"uniform", "averaged"}))->group(srf);
+  app.add_option("--plane", c.plane, "Parameter plane: best-fit plane of the points (pca) or world xy")
+      ->capture_default_str()->check(CLI::IsMember({"pca", "xy"}))->group(srf);
+  app.add_option("--smoothing", f.smoothing_mm4,
+                 "Thin-plate smoothing weight lambda, mm^4 (its 4th root is the length below which detail is "
+                 "smoothed away); 0 = none")
+      ->capture_default_str()->group(srf);
+  app.add_option("--noise-mm", f.noise_mm,
+                 "Noise of the points (standard deviation, mm): choose the smoothing so the residuals match it "
+                 "(Reinsch), instead of --smoothing; for sparse noisy points such as markers")
+      ->group(srf);
+  app.add_option("--outline", c.outline,
+                 "Data outline written with the surface: concave (grid), convex (hull), auto (concave from 2000 "
+                 "points), none")
+      ->capture_default_str()->check(CLI::IsMember({"auto", "concave", "convex", "none"}))->group(srf);
+  app.add_option("--max-slope-deg", f.fold.max_slope_deg,
+                 "Steepest slope of the fitted surface over its plane inside the outline; steeper (or folding) fails")
+      ->capture_default_str()->check(CLI::Range(1.0, 90.0))->group(srf);
+  app.add_option("--outline-cell-mm", o.outline.cell_mm, "Grid cell of the concave outline (0 = 3 mean point spacings)")
+      ->capture_default_str()->group(srf);
+
+  const std::string slv = "Solving";
+  app.add_option("--solver", c.solver, "Linear solver: sparse Cholesky (ldlt) or conjugate gradients (cg)")
+      ->capture_default_str()->check(CLI::IsMember({"ldlt", "cg"}))->group(slv);
+  app.add_option("--cg-tolerance", f.cg_tolerance, "CG: relative residual to reach")->capture_default_str()->group(slv);
+  app.add_flag("--no-correction", c.no_correction,
+               "No parameter correction: keep the projection onto the plane as parameters")->group(slv);
+  app.add_option("--max-rounds", f.max_rounds, "Fits at most (each followed by parameter correction and reweighting)")
+      ->capture_default_str()->group(slv);
+  app.add_option("--min-gain", f.min_rms_gain, "Stop when a round lowers the RMS by less than this fraction")
+      ->capture_default_str()->group(slv);
+  app.add_option("--robust", c.robust,
+                 "Outliers, judged against their neighbours: none, reject (weight 0 beyond the cutoff), huber, "
+                 "tukey (IRLS weights); use one for clouds with outliers")
+      ->capture_default_str()->check(CLI::IsMember({"none", "reject", "huber", "tukey"}))->group(slv);
+  app.add_option("--robust-threshold", f.robust_threshold,
+                 "Cutoff in robust standard deviations (0 = 5 for reject, 1.345 for huber, 4.685 for tukey)")
+      ->capture_default_str()->group(slv);
+  app.add_option("--robust-floor-mm", f.robust_min_scale_mm,
+                 "Smallest robust standard deviation: residuals below threshold x this are never outliers")
+      ->capture_default_str()->group(slv);
+  app.add_option("--threads", f.threads, "Worker threads (0 = all cores)")->capture_default_str()->group(slv);
+
+  const std::string tol = "Tolerance mode";
+  app.add_option("--tolerance", c.tolerance_mm,
+                 "Grow the net until the cross-validated deviation is at most this (mm); fails if it cannot be met")
+      ->group(tol);
+  app.add_option("--tolerance-stat", c.tolerance_stat, "Deviation compared with --tolerance")
+      ->capture_default_str()->check(CLI::IsMember({"rms", "p90", "p95", "p99", "max"}))->group(tol);
+  app.add_option("--cv-folds", c.cv_folds, "Cross-validation folds")->capture_default_str()->group(tol);
+  app.add_option("--max-poles", c.max_poles, "Largest net tried, poles per direction")->capture_default_str()->group(tol);
+}
+
+std::pair<int, int> parse_net(const std::string& text) {
+  auto number = [&](std::string_view t) {
+    int v = 0;
+    const auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
+    if (ec != std::errc() || ptr != t.data() + t.size() || v < 2) {
+      throw UsageError("--net: expected NUxNV or N with whole numbers >= 2, got '" + text + "'");
+    }
+    return v;
+  };
+  const auto x = text.find_first_of("xX");
+  if (x == std::string::npos) {
+    const int n = number(text);
+    return {n, n};
+  }
+  return {number(std::string_view(text).substr(0, x)), number(std::string_view(text).substr(x + 1))};
+}
+
+Options to_options(const Cli& c) {
+  Options o = c.options;
+  std::tie(o.fit.poles_u, o.fit.poles_v) = parse_net(c.net);
+  o.fit.knots = c.knots == "averaged" ? KnotPlacement::Averaged : KnotPlacement::Uniform;
+  o.fit.plane = c.plane == "xy" ? PlaneChoice::Xy : PlaneChoice::Pca;
+  o.fit.solver = c.solver == "cg" ? LinearSolver::Cg : LinearSolver::Ldlt;
+  o.fit.robust = c.robust == "none"    ? RobustLoss::None
+                 : c.robust == "huber" ? RobustLoss::Huber
+                 : c.robust == "tukey" ? RobustLoss::Tukey
+                                       : RobustLoss::Reject;
+  o.fit.parameter_correction = !c.no_correction;
+  o.outline.method = c.outline == "concave" ? OutlineMethod::Concave
+                     : c.outline == "convex" ? OutlineMethod::Convex
+                     : c.outline == "none"   ? OutlineMethod::None
+                                             : OutlineMethod::Auto;
+  if (!c.keep_box.empty()) {
+    const auto& b = c.keep_box;
+    if (!(b[0] < b[3] && b[1] < b[4] && b[2] < b[5])) throw UsageError("--keep-box: each minimum must be below its maximum");
+    o.select.keep_box_mm = std::array<double, 6>{b[0], b[1], b[2], b[3], b[4], b[5]};
+  }
+  if (!c.keep_above.empty()) {
+    const Eigen::Vector3d n(c.keep_above[0], c.keep_above[1], c.keep_above[2]);
+    if (!(n.norm() > 0) || !std::isfinite(c.keep_above[3])) throw UsageError("--keep-above: A,B,C must not all be 0");
+    o.select.keep_above = Plane{n / n.norm(), c.keep_above[3] / n.norm()};
+  }
+  if (!(o.select.plane_threshold_mm > 0)) throw UsageError("--plane-threshold-mm must be positive");
+  if (!(c.mesh_step_mm > 0)) throw UsageError("--mesh-step-mm must be positive");
+  if (!c.mesh.empty()) mesh_format_for(c.mesh);
+  if (c.tolerance_mm != 0) {
+    ToleranceOptions t;
+    t.tolerance_mm = c.tolerance_mm;
+    t.stat = c.tolerance_stat == "p90"   ? ToleranceStat::P90
+             : c.tolerance_stat == "p95" ? ToleranceStat::P95
+             : c.tolerance_stat == "p99" ? ToleranceStat::P99
+             : c.tolerance_stat == "max" ? ToleranceStat::Max
+                                         : ToleranceStat::Rms;
+    t.folds = c.cv_folds;
+    t.max_poles = c.max_poles;
+    if (!(t.tolerance_mm > 0)) throw UsageError("--tolerance must be a positive length in mm");
+    o.tolerance = t;
+  }
+  validate(o.fit);
+  // Every file output distinct, and only -o on stdout.
+  std::set<std::string> paths;
+  for (const std::string* p : {&c.step, &c.iges, &c.mesh, &c.report, &c.residuals, &c.output}) {
+    if (p->empty() || (p == &c.output && *p == "-")) continue;
+    if (*p == "-") throw UsageError("only -o may write to stdout ('-'); give the other outputs file names");
+    if (!paths.insert(*p).second) throw UsageError("'" + *p + "' is named for two outputs");
+  }
+  return o;
+}
+
+void write_outputs(const Cli& c, const Options& options, const PointCloud& cloud, const Result& result) {
+  const BSplineSurface& surface = result.fit.surface;
+  std::vector<std::unique_ptr<tool::OutputFile>> files;
+  auto file = [&](const std::string& path) -> tool::OutputFile& {
+    files.push_back(std::make_unique<tool::OutputFile>(path));
+    return *files.back();
+  };
+  if (!c.step.empty()) write_step(surface, file(c.step).temp_path());
+  if (!c.iges.empty()) write_iges(surface, file(c.iges).temp_path());
+  if (!c.mesh.empty()) {
+    MeshOptions m;
+    m.step_mm = c.mesh_step_mm;
+    write_mesh(file(c.mesh).stream(), surface, mesh_format_for(c.mesh), m);
+  }
+  if (!c.report.empty()) write_report(file(c.report).stream(), result, options, tool::source_name(c.input));
+  if (!c.residuals.empty()) {
+    write_ply(file(c.residuals).stream(), residual_cloud(cloud, result), PlyEncoding::BinaryLittleEndian,
+              "fitsurf residuals: residual_mm = signed distance to the surface, weight = robust weight");
+  }
+  tool::OutputFile surface_out(c.output);
+  if (!surface_out.is_stdout()) write_surface(surface_out.stream(), surface);
+  // All files are complete: rename them into place, and only then put the surface on stdout.
+  for (auto& f : files) f->commit();
+  if (surface_out.is_stdout()) write_surface(surface_out.stream(), surface);
+  surface_out.commit();
+}
+
+}  // namespace photomill::fitsurf

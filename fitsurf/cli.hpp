@@ -1,0 +1,44 @@
+// fitsurf's command line: every option as a long CLI11 option (grouped for --help), their
+// conversion into fitsurf::Options, and the writing of all requested outputs, each under a
+// temporary name committed only when every output has been written.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "fitsurf/fitsurf.hpp"
+#include "formats/point_cloud.hpp"
+
+namespace photomill::fitsurf {
+
+struct Cli {
+  Options options;               // filled directly by most options
+  std::string input = "-";
+  std::string output = "-";      // surface text
+  std::string step, iges, mesh, report, residuals;  // empty: not written
+  double mesh_step_mm = 1.0;
+  std::string net = "30x30";
+  std::string knots = "uniform", plane = "pca", solver = "ldlt", robust = "none", outline = "auto";
+  bool no_correction = false;
+  std::vector<double> keep_box, keep_above;
+  double tolerance_mm = 0;       // 0: fixed net
+  std::string tolerance_stat = "rms";
+  int cv_folds = 4;
+  int max_poles = 200;
+};
+
+void add_options(CLI::App& app, Cli& cli);
+
+// Throws UsageError for values that are individually valid but unusable (a bad --net, a plane
+// without a normal, conflicting outputs).
+Options to_options(const Cli& cli);
+
+// "30x30" or "30" (square) -> poles along u and v.
+std::pair<int, int> parse_net(const std::string& text);
+
+// Writes the surface (stdout or -o), STEP, IGES, mesh, report and residual cloud.
+void write_outputs(const Cli& cli, const Options& options, const PointCloud& cloud, const Result& result);
+
+}  // namespace photomill::fitsurf

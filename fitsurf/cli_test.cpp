@@ -1,0 +1,179 @@
+// Golden CLI cases for the fitsurf executable (args, stdin -> exit code, stdout, stderr), and its
+// outputs read back independently: surface text, JSON report, residual PLY, mesh, and STEP/IGES
+// reopened through Open CASCADE (formats/cad) with identical poles and knots.
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "fitsurf/test_shapes.hpp"
+#include "formats/cad.hpp"
+#include "formats/point_cloud.hpp"
+#include "formats/surface.hpp"
+#include "tests/run_tool.hpp"
+
+namespace photomill::fitsurf {
+namespace {
+
+using photomill::test::run_tool;
+using photomill::test::TempDir;
+using photomill::test::ToolResult;
+
+std::string xyz_text(const std::vector<Eigen::Vector3d>& pts) {
+  PointCloud c;
+  c.points_mm = pts;
+  std::ostringstream out;
+  write_xyz(out, c);
+  return out.str();
+}
+
+std::string dome_points(std::size_t n) { return xyz_text(fitsurf::test::sample(fitsurf::test::shape("dome"), n, 0.01, 41)); }
+
+struct CliCase {
+  std::string name;
+  std::vector<std::string> args;
+  std::string stdin_text;
+  int exit_code;
+  std::string stdout_has;  // empty: stdout must be empty
+  std::string stderr_has;  // empty: not checked
+};
+
+void PrintTo(const CliCase& c, std::ostream* os) { *os << c.name; }
+
+class FitsurfGolden : public ::testing::TestWithParam<CliCase> {};
+
+TEST_P(FitsurfGolden, Case) {
+  const CliCase& c = GetParam();
+  const ToolResult r = run_tool("fitsurf", c.args, c.stdin_text);
+  EXPECT_EQ(r.exit_code, c.exit_code) << "stderr: " << r.err;
+  if (c.stdout_has.empty()) {
+    EXPECT_EQ(r.out, "");
+  } else {
+    EXPECT_NE(r.out.find(c.stdout_has), std::string::npos) << r.out.substr(0, 200);
+  }
+  EXPECT_NE(r.err.find(c.stderr_has), std::string::npos) << r.err;
+}
+
+std::vector<CliCase> golden_cases() {
+  std::string collinear, flat;
+  for (int k = 0; k < 100; ++k) collinear += std::to_string(k) + " " + std::to_string(2 * k) + " 30\n";
+  for (int k = 0; k < 400; ++k) flat += std::to_string(k % 20) + " " + std::to_string(k / 20) + " 0\n";
+  const std::string dome = dome_points(3000);
+  return {
+      {"missing_input", {"no-such-cloud.xyz"}, "", 1, "", "no-such-cloud.xyz"},
+      {"short_line", {"-"}, "1 2 3\n4 5\n", 1, "", "<stdin>:2:"},
+      {"nan", {}, "1 2 3\n4 5 nan\n", 1, "", "<stdin>:2:"},
+      {"empty_input", {}, "", 1, "", "no points"},
+      {"too_few", {}, "1 2 3\n4 5 6\n7 8 10\n", 1, "", "too few"},
+      {"collinear", {}, collinear, 1, "", "line"},
+      {"flat_after_drop_plane", {"--drop-plane"}, flat, 1, "", "the cloud is flat"},
+      {"bad_net", {"--net", "3y"}, dome, 2, "", "--net"},
+      {"net_below_degree", {"--net", "3x30"}, dome, 2, "", "at least 4x4"},
+      {"bad_knots", {"--knots", "bogus"}, dome, 2, "", "--knots"},
+      {"bad_mesh_extension", {"--mesh", "out.ply"}, dome, 2, "", ".stl or .obj"},
+      {"report_on_stdout", {"--report", "-"}, dome, 2, "", "only -o"},
+      {"box_needs_six", {"--keep-box", "1,2,3"}, dome, 2, "", "--keep-box"},
+      {"tolerance_below_noise", {"--tolerance", "0.001"}, dome, 1, "", "cannot be met"},
+      {"fits_stdin", {}, dome, 0, "photomill-surface v1", "residuals: RMS"},
+      {"fits_with_options", {"-", "--net", "12x9", "--knots", "averaged", "--robust", "huber", "--solver", "cg"}, dome, 0,
+       "poles 12 9", "12x9 poles"},
+      {"tolerance_met", {"--tolerance", "0.05", "--tolerance-stat", "p95"}, dome, 0, "photomill-surface v1", "tolerance 0.05 mm (p95) met"},
+  };
+}
+
+INSTANTIATE_TEST_SUITE_P(Cases, FitsurfGolden, ::testing::ValuesIn(golden_cases()), [](const auto& info) { return info.param.name; });
+
+TEST(FitsurfCli, QuietMeansNothingOnStderr) {
+  const ToolResult r = run_tool("fitsurf", {"-q"}, dome_points(2000));
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  std::istringstream in(r.out);
+  EXPECT_NO_THROW(read_surface(in, "<stdout>"));
+}
+
+TEST(FitsurfCli, WritesEveryOutput) {
+  TempDir dir;
+  const auto p = [&](const char* name) { return (dir.path() / name).string(); };
+  // A binary PLY input with an extra per-point property, which the residual cloud keeps.
+  PointCloud in;
+  in.points_mm = fitsurf::test::sample(fitsurf::test::shape("wave"), 5000, 0.01, 42);
+  PointProperty& views = in.add_property("views", PlyScalar::UInt8);
+  for (std::size_t k = 0; k < views.values.size(); ++k) views.values[k] = static_cast<double>(k % 9);
+  {
+    std::ofstream f(p("in.ply"), std::ios::binary);
+    write_ply(f, in, PlyEncoding::BinaryLittleEndian);
+  }
+  const ToolResult r = run_tool("fitsurf", {p("in.ply"), "-o", p("s.surf"), "--report", p("r.json"), "--residuals", p("res.ply"),
+                                            "--mesh", p("m.stl"), "--mesh-step-mm", "2"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out, "");
+  std::ifstream sf(p("s.surf"));
+  const BSplineSurface s = read_surface(sf, "s.surf");
+  EXPECT_EQ(s.num_poles_u, 30);
+  EXPECT_GE(s.boundary_uv.size(), 4u);
+  const std::string report = photomill::test::read_file(p("r.json"));
+  for (const char* key : {"\"rms_mm\":", "\"max_abs_mm\":", "\"p95_mm\":", "\"poles_u\":30", "\"smoothing_mm4\":", "\"round_rms_mm\":[",
+                          "\"outliers\":", "\"tolerance\":null"}) {
+    EXPECT_NE(report.find(key), std::string::npos) << key << " in " << report;
+  }
+  std::ifstream rf(p("res.ply"), std::ios::binary);
+  const PointCloud res = read_ply(rf, "res.ply");
+  ASSERT_EQ(res.points_mm.size(), in.points_mm.size());
+  ASSERT_NE(res.find("residual_mm"), nullptr);
+  ASSERT_NE(res.find("weight"), nullptr);
+  ASSERT_NE(res.find("views"), nullptr);
+  EXPECT_EQ(res.find("views")->values, views.values);
+  double sum2 = 0;
+  for (double d : res.find("residual_mm")->values) sum2 += d * d;
+  EXPECT_NEAR(std::sqrt(sum2 / static_cast<double>(res.points_mm.size())), 0.01, 0.002);
+  const std::string stl = photomill::test::read_file(p("m.stl"));
+  ASSERT_GT(stl.size(), 84u);
+  std::uint32_t triangles = 0;
+  std::memcpy(&triangles, stl.data() + 80, 4);
+  EXPECT_EQ(stl.size(), 84u + 50u * triangles);
+  EXPECT_GT(triangles, 1000u);
+}
+
+TEST(FitsurfCli, AFailureLeavesNoFile) {
+  TempDir dir;
+  const auto p = [&](const char* name) { return (dir.path() / name).string(); };
+  const ToolResult r = run_tool("fitsurf", {"-", "-o", p("s.surf"), "--report", p("r.json"), "--step", p("s.step"), "--mesh", p("m.obj")},
+                                "1 2 3\n4 5 6\n7 8 10\n");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_TRUE(std::filesystem::is_empty(dir.path())) << "no output and no temporary file";
+}
+
+// Done-when: STEP and IGES written by fitsurf reopen with identical poles and knots; Open CASCADE
+// prints nothing on stdout (stdout is byte for byte the surface text).
+TEST(FitsurfCli, StepAndIgesReopenIdentical) {
+  TempDir dir;
+  const auto p = [&](const char* name) { return (dir.path() / name).string(); };
+  const std::string points = dome_points(4000);
+  const ToolResult r = run_tool("fitsurf", {"-", "--step", p("s.step"), "--iges", p("s.igs"), "--net", "14x11"}, points);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const ToolResult plain = run_tool("fitsurf", {"-", "--net", "14x11"}, points);
+  EXPECT_EQ(r.out, plain.out) << "stdout carries the surface only";
+  std::istringstream in(r.out);
+  const BSplineSurface s = read_surface(in, "<stdout>");
+  for (const char* file : {"s.step", "s.igs"}) {
+    const std::vector<BSplineSurface> back = read_cad(p(file));
+    ASSERT_EQ(back.size(), 1u) << file;
+    const BSplineSurface& b = back[0];
+    EXPECT_EQ(b.degree_u, s.degree_u) << file;
+    EXPECT_EQ(b.degree_v, s.degree_v) << file;
+    EXPECT_EQ(b.knots_u, s.knots_u) << file;
+    EXPECT_EQ(b.knots_v, s.knots_v) << file;
+    EXPECT_EQ(b.poles_mm, s.poles_mm) << file;
+    EXPECT_TRUE(b.weights.empty()) << file;
+    ASSERT_EQ(b.boundary_uv.size(), s.boundary_uv.size()) << file;
+    for (std::size_t k = 0; k < s.boundary_uv.size(); ++k) {
+      double nearest = 1;
+      for (const auto& x : b.boundary_uv) nearest = std::min(nearest, (x - s.boundary_uv[k]).norm());
+      EXPECT_LT(nearest, 1e-9) << file << " boundary vertex " << k;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace photomill::fitsurf

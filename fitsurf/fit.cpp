@@ -1,0 +1,528 @@
+// The fitting loop of fitsurf (method and sources in fit.hpp).
+#include "fitsurf/fit.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numbers>
+#include <string>
+
+#include <Eigen/IterativeLinearSolvers>
+#include <Eigen/SparseCholesky>
+
+#include "fitsurf/evaluate.hpp"
+#include "fitsurf/normal_equations.hpp"
+#include "fitsurf/numbers.hpp"
+#include "fitsurf/outline.hpp"
+#include "fitsurf/parallel.hpp"
+#include "formats/bspline.hpp"
+#include "formats/error.hpp"
+#include "formats/log.hpp"
+
+namespace photomill::fitsurf {
+namespace {
+
+std::string at_mm(const Eigen::Vector3d& x) {
+  std::string s(1, '(');  // appended piecewise: GCC 12 warns (-Wrestrict) on "(" + std::string&&
+  s += fixed(x.x(), 1);
+  s += ", ";
+  s += fixed(x.y(), 1);
+  s += ", ";
+  s += fixed(x.z(), 1);
+  s += ") mm";
+  return s;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+double weighted_rms(const std::vector<double>& d, const std::vector<double>& w) {
+  double s = 0, sw = 0;
+  for (std::size_t k = 0; k < d.size(); ++k) {
+    const double wk = w.empty() ? 1.0 : w[k];
+    s += wk * d[k] * d[k];
+    sw += wk;
+  }
+  return sw > 0 ? std::sqrt(s / sw) : 0.0;
+}
+
+struct Weighting {
+  double scale_mm = 0, cutoff_mm = 0;
+  std::size_t outliers = 0;
+};
+
+// Local statistics of the residuals: for each point k, the median m_k and the scale
+// s_k = 1.4826 MAD of the residuals of the points around it (in the parameter plane, mm), and its
+// deviation e_k = d_k - m_k. The error a coarse net makes is smooth and shared by neighbours: it
+// moves m_k and widens s_k, so it is not taken for outliers; an isolated outlier keeps its whole
+// residual and does not widen its neighbours' scale much. The neighbours are the points in the
+// 3 x 3 block of grid cells around k's cell, cells 1.5 mean point spacings wide (about 20
+// points); with fewer than 4 of them e_k = d_k and s_k = 0.
+struct LocalResiduals {
+  std::vector<double> deviation_mm, scale_mm;
+};
+
+LocalResiduals local_residuals(const std::vector<Eigen::Vector2d>& uv, const std::vector<double>& d, double lu,
+                               double lv, int threads) {
+  const std::size_t n = d.size();
+  const double cell = 1.5 * std::sqrt(lu * lv / static_cast<double>(std::max<std::size_t>(n, 1)));
+  const int nx = std::clamp(static_cast<int>(std::ceil(lu / cell)), 1, 4096);
+  const int ny = std::clamp(static_cast<int>(std::ceil(lv / cell)), 1, 4096);
+  auto cell_of = [&](const Eigen::Vector2d& p) {
+    const int ix = std::clamp(static_cast<int>(p.x() * nx), 0, nx - 1);
+    const int iy = std::clamp(static_cast<int>(p.y() * ny), 0, ny - 1);
+    return static_cast<std::size_t>(iy) * nx + ix;
+  };
+  const std::size_t ncell = static_cast<std::size_t>(nx) * ny;
+  std::vector<std::size_t> start(ncell + 1, 0), order(n);
+  for (const auto& p : uv) ++start[cell_of(p) + 1];
+  for (std::size_t c = 0; c < ncell; ++c) start[c + 1] += start[c];
+  {
+    std::vector<std::size_t> fill(start.begin(), start.end() - 1);
+    for (std::size_t k = 0; k < n; ++k) order[fill[cell_of(uv[k])]++] = k;
+  }
+  LocalResiduals r;
+  r.deviation_mm.resize(n);
+  r.scale_mm.resize(n);
+  parallel_for(n, worker_count(n, threads, 4096), [&](std::size_t b, std::size_t end, int) {
+    std::vector<double> near;
+    for (std::size_t k = b; k < end; ++k) {
+      const std::size_t c = cell_of(uv[k]);
+      const int cx = static_cast<int>(c % static_cast<std::size_t>(nx));
+      const int cy = static_cast<int>(c / static_cast<std::size_t>(nx));
+      near.clear();
+      for (int y = std::max(0, cy - 1); y <= std::min(ny - 1, cy + 1); ++y) {
+        for (int x = std::max(0, cx - 1); x <= std::min(nx - 1, cx + 1); ++x) {
+          const std::size_t cc = static_cast<std::size_t>(y) * nx + x;
+          for (std::size_t i = start[cc]; i < start[cc + 1]; ++i) {
+            if (order[i] != k) near.push_back(d[order[i]]);
+          }
+        }
+      }
+      if (near.size() < 4) {
+        r.deviation_mm[k] = d[k];
+        r.scale_mm[k] = 0;
+        continue;
+      }
+      const auto mid = near.begin() + static_cast<std::ptrdiff_t>(near.size() / 2);
+      std::nth_element(near.begin(), mid, near.end());
+      const double m = *mid;
+      for (double& x : near) x = std::abs(x - m);
+      std::nth_element(near.begin(), mid, near.end());
+      r.deviation_mm[k] = d[k] - m;
+      r.scale_mm[k] = 1.4826 * *mid;
+    }
+  });
+  return r;
+}
+
+// IRLS weights (fit.hpp, step 4) from the local residual statistics: point k's cutoff is
+// c_k = threshold * max(s_k, sigma), sigma = max(1.4826 MAD(e), robust_min_scale_mm) the global
+// scale (consistent for Gaussian residuals).
+Weighting robust_weights(const LocalResiduals& lr, const FitOptions& o, std::vector<double>& w,
+                         std::vector<std::uint8_t>* outlier = nullptr) {
+  const std::vector<double>& e = lr.deviation_mm;
+  const double k = o.robust_threshold > 0                ? o.robust_threshold
+                   : o.robust == RobustLoss::Reject ? 5.0
+                   : o.robust == RobustLoss::Huber  ? 1.345
+                                                    : 4.685;
+  const double med = median(e);
+  std::vector<double> dev(e.size());
+  for (std::size_t i = 0; i < e.size(); ++i) dev[i] = std::abs(e[i] - med);
+  Weighting r;
+  r.scale_mm = std::max(1.4826 * median(std::move(dev)), o.robust_min_scale_mm);
+  r.cutoff_mm = k * r.scale_mm;
+  w.resize(e.size());
+  if (outlier) outlier->assign(e.size(), 0);
+  for (std::size_t i = 0; i < e.size(); ++i) {
+    const double a = std::abs(e[i]) / (k * std::max(lr.scale_mm[i], r.scale_mm));
+    if (a > 1) {
+      ++r.outliers;
+      if (outlier) (*outlier)[i] = 1;
+    }
+    if (o.robust == RobustLoss::Reject) {
+      w[i] = a <= 1 ? 1.0 : 0.0;
+    } else if (o.robust == RobustLoss::Huber) {
+      w[i] = a <= 1 ? 1.0 : 1.0 / a;
+    } else {
+      w[i] = a < 1 ? (1 - a * a) * (1 - a * a) : 0.0;
+    }
+  }
+  return r;
+}
+
+BSplineSurface make_surface(const SplineSpace& s, const Eigen::MatrixXd& X) {
+  BSplineSurface out;
+  out.degree_u = s.p;
+  out.degree_v = s.q;
+  out.num_poles_u = s.nu;
+  out.num_poles_v = s.nv;
+  out.knots_u = s.U;
+  out.knots_v = s.V;
+  out.poles_mm.resize(static_cast<std::size_t>(s.num_poles()));
+  for (int g = 0; g < s.num_poles(); ++g) out.poles_mm[static_cast<std::size_t>(g)] = X.row(g).transpose();
+  return out;
+}
+
+// The linear solve of one round; keeps the symbolic factorisation (the pattern never changes)
+// and the previous solution (the CG starting guess).
+class NetSolver {
+public:
+  NetSolver(SplineSpace space, const FitOptions& o, double lu, double lv)
+      : space_(std::move(space)), o_(o), K_(thin_plate_matrix(space_, lu, lv)), lambda_(o.smoothing_mm4) {}
+
+  void set_smoothing(double lambda_mm4) { lambda_ = lambda_mm4; }
+  double smoothing() const { return lambda_; }
+
+  Eigen::MatrixXd solve(const std::vector<Eigen::Vector2d>& uv, const std::vector<Eigen::Vector3d>& pts,
+                        const std::vector<double>& w) {
+    const DataNormalEquations ne = accumulate_normal_equations(space_, uv, pts, w, o_.threads);
+    if (!(ne.weight_sum > 0)) throw GeometryError("no point carries weight in the fit");
+    const double sd = 1.0 / ne.weight_sum;
+    const Eigen::SparseMatrix<double> A = assemble_sparse(ne.matrix, sd, K_, lambda_);
+    Eigen::MatrixXd B(space_.num_poles(), 3);
+    for (int g = 0; g < space_.num_poles(); ++g) B.row(g) = sd * ne.rhs[static_cast<std::size_t>(g)].transpose();
+    Eigen::MatrixXd X;
+    if (o_.solver == LinearSolver::Ldlt) {
+      if (!analyzed_) {
+        ldlt_.analyzePattern(A);
+        analyzed_ = true;
+      }
+      ldlt_.factorize(A);
+      if (ldlt_.info() != Eigen::Success) singular(ne);
+      const Eigen::VectorXd D = ldlt_.vectorD();
+      if (!(D.minCoeff() > o_.min_pivot_ratio * D.maxCoeff())) singular(ne);
+      X = ldlt_.solve(B);
+    } else {
+      Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper,
+                               Eigen::IncompleteCholesky<double>>
+          cg;
+      cg.setTolerance(o_.cg_tolerance);
+      cg.setMaxIterations(o_.cg_max_iterations);
+      cg.compute(A);
+      if (cg.info() != Eigen::Success) singular(ne);
+      X = guess_.size() ? Eigen::MatrixXd(cg.solveWithGuess(B, guess_)) : Eigen::MatrixXd(cg.solve(B));
+      if (cg.info() != Eigen::Success) {
+        throw GeometryError("conjugate gradients did not converge (relative error " + sig(cg.error(), 3) +
+                            " after " + std::to_string(cg.iterations()) +
+                            " iterations): use --solver ldlt, or more --smoothing");
+      }
+      guess_ = X;
+    }
+    if (!X.allFinite()) singular(ne);
+    return X;
+  }
+
+private:
+  [[noreturn]] void singular(const DataNormalEquations& ne) const {
+    int empty = 0;
+    for (int g = 0; g < space_.num_poles(); ++g) empty += ne.matrix.at(g, 0, 0) == 0.0;
+    throw GeometryError("the least-squares system is singular: " + std::to_string(empty) + " of the " +
+                        std::to_string(space_.nu) + "x" + std::to_string(space_.nv) +
+                        " poles have no point in their support" +
+                        (lambda_ > 0 ? std::string() : std::string(" and --smoothing is 0")) +
+                        "; use a smaller --net or a positive --smoothing");
+  }
+
+  SplineSpace space_;
+  const FitOptions& o_;
+  BandedSymmetric K_;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
+  bool analyzed_ = false;
+  Eigen::MatrixXd guess_;
+  double lambda_;
+};
+
+// |Q - S(u, v)| at fixed parameters (the residual the fit itself minimises when the parameters
+// are not corrected), signed by the side of the parameter plane (local t3) Q lies on: the
+// surface normal's side wherever the surface does not fold, which check_no_fold enforces.
+void parameter_residuals(const BSplineSurface& s, const std::vector<Eigen::Vector3d>& pts,
+                         const std::vector<Eigen::Vector2d>& uv, std::vector<double>& d, int threads) {
+  d.resize(pts.size());
+  parallel_for(pts.size(), worker_count(pts.size(), threads, 512), [&](std::size_t b, std::size_t e, int) {
+    for (std::size_t k = b; k < e; ++k) {
+      const BasisRow bu = basis_row(s.num_poles_u - 1, s.degree_u, uv[k].x(), s.knots_u);
+      const BasisRow bv = basis_row(s.num_poles_v - 1, s.degree_v, uv[k].y(), s.knots_v);
+      Eigen::Vector3d x = Eigen::Vector3d::Zero();
+      for (int a = 0; a <= s.degree_u; ++a) {
+        Eigen::Vector3d row = Eigen::Vector3d::Zero();
+        for (int c = 0; c <= s.degree_v; ++c) row += bv.values[static_cast<std::size_t>(c)] * s.pole(bu.first + a, bv.first + c);
+        x += bu.values[static_cast<std::size_t>(a)] * row;
+      }
+      const Eigen::Vector3d r = pts[k] - x;
+      d[k] = r.z() < 0 ? -r.norm() : r.norm();
+    }
+  });
+}
+
+// Reinsch's criterion (Reinsch 1967, "Smoothing by spline functions"): the smoothest surface
+// whose residuals match the noise. lambda is found by bisection on log10(lambda) in
+// [-6, 6] such that the RMS of the first fit's residuals (plane parameters, unit weights) equals
+// noise_mm; the RMS grows monotonically with lambda. Returns the lambda used.
+double smoothing_for_noise(NetSolver& solver, const SplineSpace& space, const std::vector<Eigen::Vector2d>& uv,
+                           const std::vector<Eigen::Vector3d>& local, const FitOptions& o) {
+  std::vector<double> d;
+  auto rms_at = [&](double log_lambda) {
+    solver.set_smoothing(std::pow(10.0, log_lambda));
+    parameter_residuals(make_surface(space, solver.solve(uv, local, {})), local, uv, d, o.threads);
+    return weighted_rms(d, {});
+  };
+  double lo = -6, hi = 6;
+  if (rms_at(lo) >= o.noise_mm) return std::pow(10.0, lo);  // even the least smoothing leaves that much
+  if (rms_at(hi) <= o.noise_mm) return std::pow(10.0, hi);  // the data are smoother than the noise
+  while (hi - lo > 0.02) {  // lambda to within 5 %
+    const double mid = 0.5 * (lo + hi);
+    (rms_at(mid) < o.noise_mm ? lo : hi) = mid;
+  }
+  return std::pow(10.0, 0.5 * (lo + hi));
+}
+
+// The two-layer test of FoldOptions on the local points (t3 = height above the plane).
+void check_height_field(const std::vector<Eigen::Vector3d>& local, const ParameterBox& box,
+                        const PlaneFrame& frame, const FoldOptions& o) {
+  if (local.size() < o.min_points) return;
+  const double lu = box.length_u_mm(), lv = box.length_v_mm();
+  const double cell = o.cell_spacings * std::sqrt(lu * lv / static_cast<double>(local.size()));
+  const int nx = std::max(1, static_cast<int>(std::ceil(lu / cell)));
+  const int ny = std::max(1, static_cast<int>(std::ceil(lv / cell)));
+  const std::size_t ncell = static_cast<std::size_t>(nx) * ny;
+  // Counting sort of the points by cell.
+  auto cell_of = [&](const Eigen::Vector3d& x) {
+    const int ix = std::clamp(static_cast<int>((x.x() - box.t1_min) / cell), 0, nx - 1);
+    const int iy = std::clamp(static_cast<int>((x.y() - box.t2_min) / cell), 0, ny - 1);
+    return static_cast<std::size_t>(iy) * nx + ix;
+  };
+  std::vector<std::size_t> start(ncell + 1, 0);
+  for (const auto& x : local) ++start[cell_of(x) + 1];
+  for (std::size_t c = 0; c < ncell; ++c) start[c + 1] += start[c];
+  std::vector<std::size_t> fill(start.begin(), start.end() - 1), order(local.size());
+  for (std::size_t k = 0; k < local.size(); ++k) order[fill[cell_of(local[k])]++] = k;
+
+  std::size_t occupied = 0, flagged = 0;
+  double worst_gap = 0;
+  Eigen::Vector3d worst_lo, worst_hi;
+  std::vector<std::pair<double, std::size_t>> h;
+  for (std::size_t c = 0; c < ncell; ++c) {
+    const std::size_t n = start[c + 1] - start[c];
+    if (n == 0) continue;
+    ++occupied;
+    if (n < 4) continue;
+    h.clear();
+    for (std::size_t i = start[c]; i < start[c + 1]; ++i) h.emplace_back(local[order[i]].z(), order[i]);
+    std::sort(h.begin(), h.end());
+    double gap = 0;
+    std::size_t at = 0;
+    for (std::size_t i = 2; i + 2 <= n; ++i) {  // >= 2 points on each side
+      if (h[i].first - h[i - 1].first > gap) {
+        gap = h[i].first - h[i - 1].first;
+        at = i;
+      }
+    }
+    if (gap > o.gap_cells * cell) {
+      ++flagged;
+      if (gap > worst_gap) {
+        worst_gap = gap;
+        worst_lo = frame.to_world(local[h[at - 1].second]);
+        worst_hi = frame.to_world(local[h[at].second]);
+      }
+    }
+  }
+  if (flagged >= o.min_cells && static_cast<double>(flagged) >= o.min_fraction * static_cast<double>(occupied)) {
+    throw GeometryError("the part folds over its projection plane: points such as " + at_mm(worst_lo) + " and " +
+                        at_mm(worst_hi) + " project to the same place but lie " + fixed(worst_gap, 2) +
+                        " mm apart along its normal (two layers in " + std::to_string(flagged) + " of " +
+                        std::to_string(occupied) +
+                        " cells); fitsurf fits a height field over one plane: select one side of the part "
+                        "(--keep-above, --keep-box) or fit it in pieces");
+  }
+}
+
+std::vector<double> knots_for(KnotPlacement placement, const std::vector<Eigen::Vector2d>& uv, int num_poles,
+                              int degree, int coordinate) {
+  if (placement == KnotPlacement::Uniform) return clamped_uniform_knots(num_poles, degree, 0.0, 1.0);
+  std::vector<double> params(uv.size());
+  for (std::size_t k = 0; k < uv.size(); ++k) params[k] = uv[k][coordinate];
+  return averaged_knots(std::move(params), num_poles, degree);
+}
+
+}  // namespace
+
+void validate(const FitOptions& o) {
+  auto need = [](bool ok, const std::string& what) {
+    if (!ok) throw UsageError(what);
+  };
+  need(o.degree_u >= 1 && o.degree_u <= kMaxBSplineDegree && o.degree_v >= 1 && o.degree_v <= kMaxBSplineDegree,
+       "degrees must be 1.." + std::to_string(kMaxBSplineDegree));
+  need(o.poles_u >= o.degree_u + 1 && o.poles_v >= o.degree_v + 1,
+       "a degree " + std::to_string(o.degree_u) + "x" + std::to_string(o.degree_v) + " surface needs a net of at least " +
+           std::to_string(o.degree_u + 1) + "x" + std::to_string(o.degree_v + 1) + " poles, got " +
+           std::to_string(o.poles_u) + "x" + std::to_string(o.poles_v));
+  need(static_cast<long long>(o.poles_u) * o.poles_v <= 4'000'000, "control net too large (at most 4 million poles)");
+  need(std::isfinite(o.smoothing_mm4) && o.smoothing_mm4 >= 0, "--smoothing must be >= 0");
+  need(std::isfinite(o.noise_mm) && o.noise_mm >= 0, "--noise-mm must be >= 0");
+  need(o.max_rounds >= 1, "--max-rounds must be >= 1");
+  need(o.min_rms_gain >= 0 && o.min_rms_gain < 1, "--min-gain must be in [0, 1)");
+  need(o.robust_threshold >= 0, "--robust-threshold must be >= 0");
+  need(o.robust_min_scale_mm > 0, "--robust-floor-mm must be positive");
+  need(o.cg_tolerance > 0 && o.cg_max_iterations > 0, "CG tolerance and iterations must be positive");
+  need(o.threads >= 0, "--threads must be >= 0");
+}
+
+std::vector<double> averaged_knots(std::vector<double> params, int num_poles, int p) {
+  const int n = num_poles - 1;
+  const int spans = n - p + 1;
+  if (params.size() < static_cast<std::size_t>(spans) + 1) return clamped_uniform_knots(num_poles, p, 0.0, 1.0);
+  std::sort(params.begin(), params.end());
+  std::vector<double> U(static_cast<std::size_t>(num_poles + p + 1), 0.0);
+  for (int k = num_poles; k <= num_poles + p; ++k) U[static_cast<std::size_t>(k)] = 1.0;
+  // NURBS Book (9.68)-(9.69): d = (m+1)/(n-p+1); u_{p+j} = (1-alpha) ubar_{i-1} + alpha ubar_i,
+  // i = int(j d), alpha = j d - i, j = 1..n-p.
+  const double d = static_cast<double>(params.size()) / spans;
+  for (int j = 1; j <= n - p; ++j) {
+    const std::size_t i = static_cast<std::size_t>(j * d);
+    const double alpha = j * d - static_cast<double>(i);
+    U[static_cast<std::size_t>(p + j)] = (1 - alpha) * params[i - 1] + alpha * params[std::min(i, params.size() - 1)];
+  }
+  // Keep interior knots apart (ties in the data would give multiple knots, empty spans).
+  const double gap = 0.05 / spans;
+  for (int k = p + 1; k <= n; ++k) {
+    U[static_cast<std::size_t>(k)] = std::max(U[static_cast<std::size_t>(k)], U[static_cast<std::size_t>(k - 1)] + gap);
+  }
+  for (int k = n; k >= p + 1; --k) {
+    U[static_cast<std::size_t>(k)] = std::min(U[static_cast<std::size_t>(k)], U[static_cast<std::size_t>(k + 1)] - gap);
+  }
+  return U;
+}
+
+FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptions& o) {
+  validate(o);
+  const int p = o.degree_u, q = o.degree_v;
+  const std::size_t needed = static_cast<std::size_t>((p + 1) * (q + 1));
+  if (points.size() < needed) {
+    throw GeometryError(std::to_string(points.size()) + " points are too few for a degree " + std::to_string(p) + "x" +
+                        std::to_string(q) + " surface: at least " + std::to_string(needed) + " are needed");
+  }
+  FitResult r;
+  r.frame = parameter_frame(points, o.plane, o.frame);
+  if (is_flat(r.frame, o.frame)) log::info("the points are flat (a plane fits them): the surface will be a plane");
+  std::vector<Eigen::Vector3d> local(points.size());
+  parallel_for(points.size(), worker_count(points.size(), o.threads), [&](std::size_t b, std::size_t e, int) {
+    for (std::size_t k = b; k < e; ++k) local[k] = r.frame.to_local(points[k]);
+  });
+  r.box = parameter_box(local);
+  check_height_field(local, r.box, r.frame, o.fold);
+  std::vector<Eigen::Vector2d> uv(points.size());
+  for (std::size_t k = 0; k < points.size(); ++k) uv[k] = r.box.to_uv(local[k]);
+
+  SplineSpace space;
+  space.p = p;
+  space.q = q;
+  space.nu = o.poles_u;
+  space.nv = o.poles_v;
+  space.U = knots_for(o.knots, uv, o.poles_u, p, 0);
+  space.V = knots_for(o.knots, uv, o.poles_v, q, 1);
+  NetSolver solver(space, o, r.box.length_u_mm(), r.box.length_v_mm());
+  const bool reweight = o.robust != RobustLoss::None &&
+                        static_cast<double>(points.size()) >= o.robust_min_redundancy * space.num_poles();
+  if (o.robust != RobustLoss::None && !reweight) {
+    log::debug("robust reweighting off: " + std::to_string(points.size()) + " points for " +
+               std::to_string(space.num_poles()) + " poles (fewer than " + sig(o.robust_min_redundancy) + " per pole)");
+  }
+
+  if (o.noise_mm > 0) {
+    r.smoothing_mm4 = smoothing_for_noise(solver, space, uv, local, o);
+    solver.set_smoothing(r.smoothing_mm4);
+    log::debug("smoothing " + sig(r.smoothing_mm4, 3) + " mm^4 for residuals of " + sig(o.noise_mm, 3) + " mm");
+  } else {
+    r.smoothing_mm4 = o.smoothing_mm4;
+  }
+  std::vector<double> w;  // empty: all 1
+  std::vector<double> d;
+  // RMS of the previous round's residuals under the weights of this round's fit: with the weights
+  // fixed, refitting and then projecting can only lower it, so the gain measures convergence.
+  double previous = std::numeric_limits<double>::infinity();
+  for (int round = 0; round < o.max_rounds; ++round) {
+    r.local_surface = make_surface(space, solver.solve(uv, local, w));
+    r.uv = uv;
+    if (o.parameter_correction) {
+      project_points(r.local_surface, local, r.uv, d, o.projection, o.threads);
+    } else {
+      parameter_residuals(r.local_surface, local, uv, d, o.threads);
+    }
+    const double rms = weighted_rms(d, w);
+    r.round_rms_mm.push_back(rms);
+    log::debug("round " + std::to_string(round + 1) + ": RMS " + sig(rms, 6) + " mm");
+    if (!o.parameter_correction && !reweight) break;
+    // Converged when the RMS has stopped improving and the weights have settled (else the last fit
+    // would not be the one its own residuals call for).
+    bool weights_changed = false;
+    // Reweighting starts once the parameters have been corrected: the first fit's residuals, at
+    // the plane parameters, overstate the error on steep parts.
+    if (reweight && (round >= 1 || !o.parameter_correction)) {
+      std::vector<double> next;
+      robust_weights(local_residuals(r.uv, d, r.box.length_u_mm(), r.box.length_v_mm(), o.threads), o, next);
+      for (std::size_t k = 0; k < next.size() && !weights_changed; ++k) {
+        weights_changed = std::abs(next[k] - (w.empty() ? 1.0 : w[k])) > o.weight_tolerance;
+      }
+      w = std::move(next);
+    }
+    if (rms >= previous * (1 - o.min_rms_gain) && !weights_changed) break;
+    previous = weighted_rms(d, w);
+    if (o.parameter_correction) uv = r.uv;
+  }
+  r.residual_mm = std::move(d);
+  if (!o.parameter_correction && o.final_projection) {
+    // The reported residuals are orthogonal distances whatever the method.
+    project_points(r.local_surface, local, r.uv, r.residual_mm, o.projection, o.threads);
+  }
+  if (reweight) {
+    const Weighting wt = robust_weights(
+        local_residuals(r.uv, r.residual_mm, r.box.length_u_mm(), r.box.length_v_mm(), o.threads), o, r.weight, &r.outlier);
+    r.robust_applied = true;
+    r.robust_scale_mm = wt.scale_mm;
+    r.robust_cutoff_mm = wt.cutoff_mm;
+    r.outliers = wt.outliers;
+  } else {
+    r.weight.assign(points.size(), 1.0);
+  }
+  r.surface = r.local_surface;
+  for (auto& pole : r.surface.poles_mm) pole = r.frame.to_world(pole);
+  return r;
+}
+
+void check_no_fold(const FitResult& fit, const std::vector<Eigen::Vector2d>& boundary, const FoldOptions& o) {
+  const int n = std::max(2, o.check_samples);
+  double worst = std::numeric_limits<double>::infinity();
+  Eigen::Vector2d worst_uv(0, 0);
+  for (int a = 0; a < n; ++a) {
+    for (int b = 0; b < n; ++b) {
+      const Eigen::Vector2d uv((a + 0.5) / n, (b + 0.5) / n);
+      if (!boundary.empty() && !point_in_polygon(boundary, uv)) continue;
+      const SurfaceDerivatives d = evaluate(fit.local_surface, uv.x(), uv.y(), 1);
+      const Eigen::Vector3d nrm = d.su.cross(d.sv);
+      const double len = nrm.norm();
+      const double c = len > 0 ? nrm.z() / len : -1.0;
+      if (c < worst) {
+        worst = c;
+        worst_uv = uv;
+      }
+    }
+  }
+  if (worst < std::cos(o.max_slope_deg * std::numbers::pi / 180)) {
+    const Eigen::Vector3d x = surface_point(fit.surface, worst_uv.x(), worst_uv.y());
+    throw GeometryError("the fitted surface folds over its projection plane, or is steeper than " +
+                        sig(o.max_slope_deg, 3) + " degrees, near " + at_mm(x) + " (u " + fixed(worst_uv.x(), 3) +
+                        ", v " + fixed(worst_uv.y(), 3) + ", slope " +
+                        fixed(std::acos(std::clamp(worst, -1.0, 1.0)) * 180 / std::numbers::pi, 1) +
+                        " degrees): the data are not a height field over that plane (overhangs, vertical walls); "
+                        "select the part's top (--keep-above, --keep-box), or allow steeper slopes (--max-slope-deg); "
+                        "outliers near the edge of the data can also curl it: try --robust reject");
+  }
+}
+
+}  // namespace photomill::fitsurf

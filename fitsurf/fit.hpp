@@ -1,0 +1,131 @@
+// Least-squares B-spline surface fitting of scattered points (the paper, section 4; Piegl &
+// Tiller, The NURBS Book, 2nd ed.: 9.4.1 for the least-squares fit, eqs. 9.68-9.69 for knot
+// placement, 6.1 for the foot points), with thin-plate smoothing, parameter correction and robust
+// reweighting:
+//
+//   1. parameter frame: best-fit plane (PCA) or the xy plane; first parameters (u_k, v_k) by
+//      orthogonal projection onto it, scaled to the data's rectangle [0,1]^2;
+//   2. knots: clamped uniform, or averaged (NURBS Book eq. 9.69 on the sorted parameters, so every
+//      span holds about as many points);
+//   3. round r: solve the normal equations (normal_equations.hpp) for the poles with weights
+//      w_k; project every point onto the new surface (Newton foot point) - the parameter
+//      correction of Hoschek (1988, "Intrinsic parametrization for approximation") - and take
+//      the RMS of the signed orthogonal distances d_k;
+//   4. robust weights (IRLS, Holland & Welsch 1977) judged locally: for each point, the median m_k
+//      and scale s_k = 1.4826 MAD of its neighbours' residuals, its deviation e_k = d_k - m_k, and
+//      the cutoff c_k = threshold * max(s_k, sigma), sigma = 1.4826 MAD(e) over all points.
+//      The error a coarse net makes is smooth and shared by neighbours: it moves m_k and widens
+//      s_k instead of being taken for outliers; an isolated outlier keeps its residual.
+//      "reject" (iterative k-sigma rejection, as in geodetic data snooping) w = 1 for
+//      |e_k| <= c_k else 0; Huber w = min(1, c_k/|e_k|); Tukey biweight w = (1 - (e_k/c_k)^2)^2
+//      for |e_k| < c_k, else 0. Off by default: on clean data any reweighting loses accuracy
+//      where the net cannot quite follow the shape (docs/fitsurf.md); reweighting starts after
+//      the first parameter correction;
+//   5. repeat 3-4 until a round lowers the weighted RMS by less than min_rms_gain (relative, with
+//      the weights held fixed, under which it can only decrease) and no weight changes by more
+//      than weight_tolerance, or max_rounds; the last round is the result.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "fitsurf/frame.hpp"
+#include "fitsurf/project.hpp"
+#include "formats/surface.hpp"
+
+namespace photomill::fitsurf {
+
+enum class KnotPlacement { Uniform, Averaged };
+enum class LinearSolver { Ldlt, Cg };
+enum class RobustLoss { None, Reject, Huber, Tukey };
+
+// Detection of clouds that are not a height field over the parameter plane (a part folding over
+// it: overhangs, more than a half cylinder).
+struct FoldOptions {
+  // Before fitting: the plane is cut into square cells of cell_spacings mean point spacings; a
+  // cell whose points split, along the plane normal, into two groups of >= 2 points separated
+  // by more than gap_cells cell sizes holds two layers. Folding is declared when at least
+  // min_cells cells and min_fraction of the occupied cells do. Skipped below min_points points.
+  double cell_spacings = 4;
+  double gap_cells = 3;
+  std::size_t min_cells = 3;
+  double min_fraction = 0.01;
+  std::size_t min_points = 500;
+  // After fitting: the angle between the surface normal and the plane normal must stay below
+  // this inside the outline. A sparse folded cloud is interpolated by a height field that turns
+  // (nearly) vertical between its layers; a part with vertical walls is not a height field either.
+  double max_slope_deg = 84;
+  int check_samples = 64;  // per direction
+};
+
+struct FitOptions {
+  int degree_u = 3;                   // p
+  int degree_v = 3;                   // q
+  int poles_u = 30;                   // control net size along u (n + 1)
+  int poles_v = 30;                   // along v (m + 1)
+  KnotPlacement knots = KnotPlacement::Uniform;
+  PlaneChoice plane = PlaneChoice::Pca;
+  double smoothing_mm4 = 1e-2;        // lambda of the thin-plate term (normal_equations.hpp)
+  // > 0: choose lambda instead so that the residual RMS of the first fit equals this noise level
+  // (Reinsch's criterion; for sparse noisy points such as markers, whose noise is known).
+  double noise_mm = 0;
+  LinearSolver solver = LinearSolver::Ldlt;
+  double cg_tolerance = 1e-12;        // CG: relative residual |M x - B| / |B|
+  int cg_max_iterations = 20000;
+  bool parameter_correction = true;   // project the points onto the surface between rounds
+  int max_rounds = 8;                 // fits at most (the first one included)
+  double min_rms_gain = 0.001;        // stop when a round improves the RMS by less than this fraction
+  // Without parameter correction: still project every point onto the final surface so residuals
+  // are orthogonal distances (false: residuals |Q - S(u,v)| at the plane parameters, faster).
+  bool final_projection = true;
+  RobustLoss robust = RobustLoss::None;
+  double robust_threshold = 0;        // c / sigma; 0 = the loss's usual constant (reject 5, Huber 1.345, Tukey 4.685)
+  // Floor of sigma: residuals below threshold x this are never outliers, so that exact or nearly
+  // exact data do not lose the points where the net cannot follow the shape (reject: 0.1 mm).
+  double robust_min_scale_mm = 0.02;
+  double robust_min_redundancy = 3;   // reweight only with at least this many points per pole
+  double weight_tolerance = 0.01;     // rounds go on while a robust weight changes by more than this
+  double min_pivot_ratio = 1e-13;     // LDLT pivots below this times the largest: singular system
+  ProjectionOptions projection;
+  FrameOptions frame;
+  FoldOptions fold;
+  int threads = 0;                    // 0: all hardware threads
+};
+
+// Throws UsageError for option values that cannot work (degrees, net sizes, negative values).
+void validate(const FitOptions& options);
+
+struct FitResult {
+  BSplineSurface surface;        // world frame, knots on [0, 1]; boundary_uv left empty
+  BSplineSurface local_surface;  // the same surface with poles in the parameter frame
+  PlaneFrame frame;
+  ParameterBox box;
+  std::vector<Eigen::Vector2d> uv;    // foot-point parameters of each point on `surface`
+  std::vector<double> residual_mm;    // signed orthogonal distance, positive on the normal's side
+  std::vector<double> weight;         // final robust weight (all 1 without reweighting)
+  std::vector<double> round_rms_mm;   // weighted RMS distance after each round's fit (the last is returned)
+  double smoothing_mm4 = 0;           // lambda used (options.smoothing_mm4, or chosen for noise_mm)
+  bool robust_applied = false;
+  double robust_scale_mm = 0;         // global sigma of the last weighting
+  double robust_cutoff_mm = 0;        // threshold * sigma: the smallest cutoff c_k of any point
+  std::size_t outliers = 0;           // points whose local deviation |e_k| exceeds c_k
+  std::vector<std::uint8_t> outlier;  // per point: 1 if an outlier (empty without reweighting)
+};
+
+// Fits the points (world mm). Throws GeometryError for degenerate input: too few points for the
+// degrees, coincident or collinear points, a cloud folding over the parameter plane, a singular
+// system (empty net cells with smoothing 0), a surface that turns over inside the data.
+FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptions& options);
+
+// The surface folds over the parameter plane inside `boundary_uv` (or the whole domain when it
+// is empty)? Throws GeometryError naming the place. Part of fit_point_cloud, after the outline.
+void check_no_fold(const FitResult& fit, const std::vector<Eigen::Vector2d>& boundary_uv, const FoldOptions& options);
+
+// Knot vector "averaged" over the parameters (NURBS Book eq. 9.69 with d = (m+1)/(n-p+1)),
+// with interior knots kept at least 5% of a uniform span apart. Falls back to uniform knots
+// when there are fewer parameters than spans.
+std::vector<double> averaged_knots(std::vector<double> params, int num_poles, int degree);
+
+}  // namespace photomill::fitsurf

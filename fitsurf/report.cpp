@@ -1,0 +1,153 @@
+// JSON report and stderr summary of a fit (report.hpp).
+#include "fitsurf/report.hpp"
+
+#include "fitsurf/numbers.hpp"
+#include "formats/json.hpp"
+
+namespace photomill::fitsurf {
+namespace {
+
+std::string num(double v) { return sig(v, 4); }
+
+}  // namespace
+
+std::string to_string(KnotPlacement k) { return k == KnotPlacement::Uniform ? "uniform" : "averaged"; }
+std::string to_string(PlaneChoice p) { return p == PlaneChoice::Pca ? "pca" : "xy"; }
+std::string to_string(LinearSolver s) { return s == LinearSolver::Ldlt ? "ldlt" : "cg"; }
+std::string to_string(RobustLoss r) {
+  switch (r) {
+    case RobustLoss::None: return "none";
+    case RobustLoss::Reject: return "reject";
+    case RobustLoss::Huber: return "huber";
+    case RobustLoss::Tukey: return "tukey";
+  }
+  return "?";
+}
+std::string to_string(OutlineMethod m) {
+  switch (m) {
+    case OutlineMethod::Auto: return "auto";
+    case OutlineMethod::Concave: return "concave";
+    case OutlineMethod::Convex: return "convex";
+    case OutlineMethod::None: return "none";
+  }
+  return "?";
+}
+
+void write_report(std::ostream& out, const Result& r, const Options& o, const std::string& source) {
+  const FitResult& f = r.fit;
+  const BSplineSurface& s = f.surface;
+  JsonWriter j(out);
+  j.begin_object();
+  j.field("tool", "fitsurf");
+  j.field("input", source);
+  j.field("input_points", r.input_points);
+  j.key("selection").begin_object();
+  j.field("fitted_points", r.selection.kept.size());
+  j.field("dropped_box", r.selection.dropped_box);
+  j.field("dropped_below", r.selection.dropped_below);
+  j.field("dropped_plane", r.selection.dropped_plane);
+  j.field("dropped_beyond_plane", r.selection.dropped_beyond_plane);
+  j.key("plane");
+  if (r.selection.plane) {
+    const Plane& p = *r.selection.plane;
+    j.begin_array().value(p.normal.x()).value(p.normal.y()).value(p.normal.z()).value(p.offset_mm).end_array();
+  } else {
+    j.null();
+  }
+  j.end_object();
+  j.key("surface").begin_object();
+  j.field("degree_u", s.degree_u);
+  j.field("degree_v", s.degree_v);
+  j.field("poles_u", s.num_poles_u);
+  j.field("poles_v", s.num_poles_v);
+  j.field("knots", to_string(o.fit.knots));
+  j.field("parameter_plane", to_string(o.fit.plane));
+  j.key("plane_origin_mm").begin_array();
+  for (int k = 0; k < 3; ++k) j.value(f.frame.origin_mm[k]);
+  j.end_array();
+  j.key("plane_normal").begin_array();
+  for (int k = 0; k < 3; ++k) j.value(f.frame.axes(k, 2));
+  j.end_array();
+  j.field("extent_u_mm", f.box.length_u_mm());
+  j.field("extent_v_mm", f.box.length_v_mm());
+  j.field("outline", to_string(o.outline.method));
+  j.field("boundary_vertices", s.boundary_uv.size());
+  j.end_object();
+  j.key("fit").begin_object();
+  j.field("smoothing_mm4", f.smoothing_mm4);
+  j.key("noise_mm");
+  if (o.fit.noise_mm > 0) {
+    j.value(o.fit.noise_mm);
+  } else {
+    j.null();
+  }
+  j.field("solver", to_string(o.fit.solver));
+  j.field("parameter_correction", o.fit.parameter_correction);
+  j.key("round_rms_mm").begin_array();
+  for (double x : f.round_rms_mm) j.value(x);
+  j.end_array();
+  j.field("robust", to_string(o.fit.robust));
+  j.field("robust_applied", f.robust_applied);
+  j.field("robust_scale_mm", f.robust_scale_mm);
+  j.field("robust_cutoff_mm", f.robust_cutoff_mm);
+  j.field("outliers", f.outliers);
+  j.end_object();
+  j.key("residuals").begin_object();
+  j.field("count", r.stats.count);
+  j.field("rms_mm", r.stats.rms_mm);
+  j.field("mean_mm", r.stats.mean_mm);
+  j.field("max_abs_mm", r.stats.max_abs_mm);
+  j.field("p50_mm", r.stats.p50_mm);
+  j.field("p90_mm", r.stats.p90_mm);
+  j.field("p95_mm", r.stats.p95_mm);
+  j.field("p99_mm", r.stats.p99_mm);
+  j.field("inliers", r.stats.inliers);
+  j.field("inlier_rms_mm", r.stats.inlier_rms_mm);
+  j.end_object();
+  j.key("tolerance");
+  if (r.tolerance && o.tolerance) {
+    j.begin_object();
+    j.field("tolerance_mm", o.tolerance->tolerance_mm);
+    j.field("statistic", to_string(o.tolerance->stat));
+    j.field("folds", o.tolerance->folds);
+    j.field("cross_validated_mm", r.tolerance->cv_mm);
+    j.key("steps").begin_array();
+    for (const auto& st : r.tolerance->steps) {
+      j.begin_object().field("poles_u", st.poles_u).field("poles_v", st.poles_v).field("cross_validated_mm", st.cv_mm).end_object();
+    }
+    j.end_array();
+    j.end_object();
+  } else {
+    j.null();
+  }
+  j.field("seconds", r.seconds);
+  j.end_object();
+  out << "\n";
+}
+
+std::vector<std::string> summary(const Result& r, const Options& o) {
+  const FitResult& f = r.fit;
+  const std::size_t dropped = r.input_points - r.selection.kept.size();
+  std::string s = std::to_string(r.selection.kept.size()) + " points fitted";
+  if (dropped) s += " (" + std::to_string(dropped) + " of " + std::to_string(r.input_points) + " dropped by selection)";
+  s += "; " + std::to_string(f.surface.num_poles_u) + "x" + std::to_string(f.surface.num_poles_v) + " poles, degree " +
+       std::to_string(f.surface.degree_u) + "x" + std::to_string(f.surface.degree_v) + ", smoothing " +
+       num(f.smoothing_mm4) + " mm^4" + (o.fit.noise_mm > 0 ? " (for noise " + num(o.fit.noise_mm) + " mm)" : "") + ", " + std::to_string(f.round_rms_mm.size()) + " round" +
+       (f.round_rms_mm.size() == 1 ? "" : "s") + ", " + sig(r.seconds, 3) + " s";
+  std::vector<std::string> lines{s};
+  s = "residuals: RMS " + num(r.stats.rms_mm) + " mm, max " + num(r.stats.max_abs_mm) + " mm, p50 " +
+       num(r.stats.p50_mm) + ", p95 " + num(r.stats.p95_mm) + ", p99 " + num(r.stats.p99_mm) + " mm";
+  if (f.robust_applied) {
+    s += "; " + std::to_string(f.outliers) + " outlier" + (f.outliers == 1 ? "" : "s") + " beyond " +
+         num(f.robust_cutoff_mm) + " mm (inlier RMS " + num(r.stats.inlier_rms_mm) + " mm)";
+  }
+  lines.push_back(s);
+  if (r.tolerance && o.tolerance) {
+    lines.push_back("tolerance " + num(o.tolerance->tolerance_mm) + " mm (" + to_string(o.tolerance->stat) +
+         ") met: cross-validated " + num(r.tolerance->cv_mm) + " mm after " + std::to_string(r.tolerance->steps.size()) +
+         " net sizes");
+  }
+  return lines;
+}
+
+}  // namespace photomill::fitsurf

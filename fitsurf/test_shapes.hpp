@@ -1,0 +1,187 @@
+// Ground truth for fitsurf's tests and benchmark: analytic height fields z = f(x, y) over
+// 150 x 100 mm ([-75, 75] x [-50, 50]), mostly 20-40 mm high - sums of Gaussian bumps, a tanh
+// saddle, a wave, a dome (the kinds of tests/synth's shapes: synth::make_shape could replace
+// them once synth is in), a narrow bump (the most curved) and a cylindrical ridge (the
+// steepest) - plus samplers with Gaussian noise and the deviation of a fitted
+// surface from the truth. Header-only; deterministic (SplitMix64 + Box-Muller).
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Eigenvalues>
+
+#include "formats/bspline.hpp"
+
+namespace photomill::fitsurf::test {
+
+struct Shape {
+  std::string name;
+  std::function<double(double, double)> f;  // z in mm at (x, y) mm
+};
+
+inline double gauss(double x, double y, double x0, double y0, double sx, double sy) {
+  const double a = (x - x0) / sx, b = (y - y0) / sy;
+  return std::exp(-0.5 * (a * a + b * b));
+}
+
+// The shapes over the rectangle.
+inline std::vector<Shape> shapes() {
+  return {
+      {"bumps",
+       [](double x, double y) {
+         return 20 + 12 * gauss(x, y, -35, 10, 22, 18) + 9 * gauss(x, y, 30, -15, 18, 20) +
+                6 * gauss(x, y, 45, 28, 12, 12) + 5 * gauss(x, y, -10, -30, 25, 12);
+       }},
+      {"saddle", [](double x, double y) { return 30 + 8 * std::tanh(x / 40) * std::tanh(y / 30) + 2 * gauss(x, y, 0, 0, 30, 30); }},
+      {"wave",
+       [](double x, double y) {
+         return 30 + 6 * std::sin(2 * std::numbers::pi * (x + 10) / 80) * std::cos(2 * std::numbers::pi * (y - 5) / 70);
+       }},
+      {"dome", [](double x, double y) { return 20 + 18 * gauss(x, y, 5, -5, 45, 32) + 2 * gauss(x, y, -40, 20, 20, 20); }},
+      // The most curved: a narrow bump, 10 mm radius of curvature at the top, slopes to 41 degrees.
+      {"steep", [](double x, double y) { return 20 + 20 * gauss(x, y, 0, 0, 14, 14); }},
+      // The steepest: a cylindrical ridge of radius 52 mm along x, 14-52 mm high, its sides 74
+      // degrees steep at y = +-50 (where projection onto a plane compresses the data most).
+      {"ridge", [](double, double y) { return std::sqrt(52.0 * 52.0 - y * y); }},
+  };
+}
+
+inline Shape shape(const std::string& name) {
+  for (auto& s : shapes()) {
+    if (s.name == name) return s;
+  }
+  return shapes().front();
+}
+
+class Rng {
+public:
+  explicit Rng(std::uint64_t seed) : state_(seed) {}
+  std::uint64_t next() {
+    std::uint64_t x = (state_ += 0x9E3779B97F4A7C15ull);
+    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+    x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+    return x ^ (x >> 31);
+  }
+  double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
+  double uniform(double a, double b) { return a + (b - a) * uniform(); }
+  double normal() {
+    const double u1 = 1.0 - uniform(), u2 = uniform();
+    return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * std::numbers::pi * u2);
+  }
+
+private:
+  std::uint64_t state_;
+};
+
+constexpr double kXMin = -75, kXMax = 75, kYMin = -50, kYMax = 50;
+
+// n points uniform in (x, y) over the rectangle, on the shape, plus isotropic Gaussian noise of
+// standard deviation sigma_mm on each coordinate.
+inline std::vector<Eigen::Vector3d> sample(const Shape& s, std::size_t n, double sigma_mm, std::uint64_t seed) {
+  Rng rng(seed);
+  std::vector<Eigen::Vector3d> pts(n);
+  for (auto& p : pts) {
+    const double x = rng.uniform(kXMin, kXMax), y = rng.uniform(kYMin, kYMax);
+    p = Eigen::Vector3d(x, y, s.f(x, y));
+    if (sigma_mm > 0) p += sigma_mm * Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal());
+  }
+  return pts;
+}
+
+// Marker-like sparse points: a jittered nx x ny grid over the rectangle (margin kept).
+inline std::vector<Eigen::Vector3d> sample_grid(const Shape& s, int nx, int ny, double jitter_mm, double sigma_mm,
+                                                std::uint64_t seed) {
+  Rng rng(seed);
+  std::vector<Eigen::Vector3d> pts;
+  const double hx = (kXMax - kXMin) / nx, hy = (kYMax - kYMin) / ny;
+  for (int i = 0; i < nx; ++i) {
+    for (int j = 0; j < ny; ++j) {
+      const double x = kXMin + (i + 0.5) * hx + rng.uniform(-jitter_mm, jitter_mm);
+      const double y = kYMin + (j + 0.5) * hy + rng.uniform(-jitter_mm, jitter_mm);
+      Eigen::Vector3d p(x, y, s.f(x, y));
+      if (sigma_mm > 0) p += sigma_mm * Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal());
+      pts.push_back(p);
+    }
+  }
+  return pts;
+}
+
+// Gradient and Hessian of f by central differences (step 1e-3 mm: truncation ~1e-7 relative,
+// rounding ~1e-10 mm^-1 for these smooth shapes).
+inline void derivatives(const Shape& s, double x, double y, Eigen::Vector2d& g, Eigen::Matrix2d& H) {
+  constexpr double h = 1e-3;
+  const double f0 = s.f(x, y);
+  const double fxp = s.f(x + h, y), fxm = s.f(x - h, y), fyp = s.f(x, y + h), fym = s.f(x, y - h);
+  g = Eigen::Vector2d((fxp - fxm) / (2 * h), (fyp - fym) / (2 * h));
+  H(0, 0) = (fxp - 2 * f0 + fxm) / (h * h);
+  H(1, 1) = (fyp - 2 * f0 + fym) / (h * h);
+  H(0, 1) = H(1, 0) = (s.f(x + h, y + h) - s.f(x + h, y - h) - s.f(x - h, y + h) + s.f(x - h, y - h)) / (4 * h * h);
+}
+
+// Largest |principal curvature| of the height field at (x, y): the eigenvalues of the shape
+// operator I^-1 II with I = 1 + g g^T, II = H / sqrt(1 + |g|^2).
+inline double true_max_curvature(const Shape& s, double x, double y) {
+  Eigen::Vector2d g;
+  Eigen::Matrix2d H;
+  derivatives(s, x, y, g, H);
+  const Eigen::Matrix2d I = Eigen::Matrix2d::Identity() + g * g.transpose();
+  const Eigen::Matrix2d W = I.inverse() * H / std::sqrt(1 + g.squaredNorm());
+  return W.eigenvalues().cwiseAbs().maxCoeff();
+}
+
+// Largest |principal curvature| of a B-spline surface at (u, v) (same formula with I, II from
+// S_u, S_v, S_uu, S_uv, S_vv).
+inline double surface_max_curvature(const BSplineSurface& s, double u, double v) {
+  const SurfaceDerivatives d = surface_derivatives(s, u, v);
+  const Eigen::Vector3d n = d.normal();
+  Eigen::Matrix2d I, II;
+  I << d.su.dot(d.su), d.su.dot(d.sv), d.su.dot(d.sv), d.sv.dot(d.sv);
+  II << d.suu.dot(n), d.suv.dot(n), d.suv.dot(n), d.svv.dot(n);
+  const Eigen::Matrix2d W = I.inverse() * II;
+  return W.eigenvalues().cwiseAbs().maxCoeff();
+}
+
+// Distance of a point to the height field, to first order: |z - f(x, y)| / sqrt(1 + |grad f|^2).
+inline double distance_to_truth(const Shape& s, const Eigen::Vector3d& x) {
+  Eigen::Vector2d g;
+  Eigen::Matrix2d H;
+  derivatives(s, x.x(), x.y(), g, H);
+  return std::abs(x.z() - s.f(x.x(), x.y())) / std::sqrt(1 + g.squaredNorm());
+}
+
+struct TruthDeviation {
+  double rms_mm = 0, max_mm = 0;
+  double max_curvature = 0, true_max_curvature = 0;  // 1/mm over the same samples
+  std::size_t samples = 0;
+};
+
+// Deviation of the surface from the truth over an n x n grid in (u, v), keeping the samples
+// accepted by `inside` (e.g. inside the outline or the points' hull).
+inline TruthDeviation compare_with_truth(const BSplineSurface& s, const Shape& shape, int n,
+                                         const std::function<bool(const Eigen::Vector2d&)>& inside) {
+  TruthDeviation t;
+  double sum2 = 0;
+  for (int a = 0; a < n; ++a) {
+    for (int b = 0; b < n; ++b) {
+      const Eigen::Vector2d uv((a + 0.5) / n, (b + 0.5) / n);
+      if (!inside(uv)) continue;
+      const Eigen::Vector3d x = surface_point(s, uv.x(), uv.y());
+      const double d = distance_to_truth(shape, x);
+      sum2 += d * d;
+      t.max_mm = std::max(t.max_mm, d);
+      t.max_curvature = std::max(t.max_curvature, surface_max_curvature(s, uv.x(), uv.y()));
+      t.true_max_curvature = std::max(t.true_max_curvature, true_max_curvature(shape, x.x(), x.y()));
+      ++t.samples;
+    }
+  }
+  t.rms_mm = t.samples ? std::sqrt(sum2 / static_cast<double>(t.samples)) : 0.0;
+  return t;
+}
+
+}  // namespace photomill::fitsurf::test
