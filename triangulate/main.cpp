@@ -1,13 +1,44 @@
-// triangulate: camera poses, 3D points and bundle adjustment.
-// Not built yet (issue #6): only --help and --version work; running it says so and exits 1.
-#include "formats/error.hpp"
+// triangulate: camera poses, 3D points and bundle adjustment. Reads tracks (file or stdin), the
+// camera and the datum (control points, scale bars or a marker side); writes the point cloud
+// (PLY, -o or stdout), and on request the poses CSV, a JSON report and a COLMAP text model.
+// The report also goes to stderr. See docs/triangulate.md.
+#include "formats/log.hpp"
 #include "formats/tool.hpp"
+#include "triangulate/cli.hpp"
+#include "triangulate/colmap.hpp"
 
 int main(int argc, char** argv) {
-  std::vector<std::string> inputs;
-  return photomill::tool::run(
+  using namespace photomill;
+  triangulate::Cli cli;
+  return tool::run(
       argc, argv,
-      {"triangulate", "camera poses, 3D points and bundle adjustment (not built yet, issue #6)", "triangulate --help"},
-      [&](CLI::App& app) { app.add_option("inputs", inputs, "Input files ('-' for stdin)"); },
-      [] { throw std::runtime_error("this stage is not built yet (issue #6); no output written"); });
+      {"triangulate", "camera poses, 3D points and bundle adjustment from tracks and a calibrated camera",
+       "match obs.csv | triangulate -c camera.yaml --control-points plate.csv --poses poses.csv -o cloud.ply"},
+      [&](CLI::App& app) { triangulate::add_options(app, cli); },
+      [&] {
+        const triangulate::ReconstructOptions options = triangulate::to_options(cli);
+        const triangulate::ReconstructInput input = triangulate::read_input(cli);
+        if (!cli.colmap.empty()) triangulate::check_colmap_camera(input.camera, input.camera_source);
+
+        const triangulate::Reconstruction result = triangulate::reconstruct(input, options);
+        triangulate::log_report(result.report);
+
+        // Every output is written under a temporary name and committed only when all succeeded.
+        tool::OutputFile cloud(cli.output);
+        write_ply(cloud.stream(), triangulate::make_point_cloud(result),
+                  cli.ply_encoding == "ascii" ? PlyEncoding::Ascii : PlyEncoding::BinaryLittleEndian,
+                  "photomill triangulate, units mm");
+        std::optional<tool::OutputFile> poses, report, camera;
+        if (!cli.poses.empty()) write_poses(poses.emplace(cli.poses).stream(), triangulate::registered_poses(result));
+        if (!cli.report.empty()) triangulate::write_report_json(report.emplace(cli.report).stream(), result.report);
+        if (!cli.refined_camera.empty()) write_camera_yaml(camera.emplace(cli.refined_camera).stream(), result.camera);
+        triangulate::ColmapModelFiles colmap(cli.colmap);
+        if (!cli.colmap.empty()) colmap.write(result);
+
+        cloud.commit();
+        for (auto* f : {&poses, &report, &camera}) {
+          if (*f) (*f)->commit();
+        }
+        colmap.commit();
+      });
 }

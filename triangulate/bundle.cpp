@@ -1,0 +1,240 @@
+// Bundle adjustment (see bundle.hpp).
+#include "triangulate/bundle.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <set>
+
+#include "triangulate/parallel.hpp"
+#include "triangulate/residuals.hpp"
+
+namespace photomill::triangulate {
+namespace {
+
+// Ceres' loss functions take ownership semantics from the Problem; the problem deletes them.
+ceres::LossFunction* make_loss(LossKind kind, double scale) {
+  switch (kind) {
+    case LossKind::Trivial: return nullptr;
+    case LossKind::Huber: return new ceres::HuberLoss(scale);
+    case LossKind::Cauchy: return new ceres::CauchyLoss(scale);
+    case LossKind::SoftL1: return new ceres::SoftLOneLoss(scale);
+  }
+  return nullptr;
+}
+
+ceres::LinearSolverType choose_solver(const BundleOptions& o, std::size_t images) {
+  switch (o.solver) {
+    case SolverKind::DenseSchur: return ceres::DENSE_SCHUR;
+    case SolverKind::SparseSchur: return ceres::SPARSE_SCHUR;
+    case SolverKind::IterativeSchur: return ceres::ITERATIVE_SCHUR;
+    case SolverKind::Auto: break;
+  }
+  if (images <= static_cast<std::size_t>(o.dense_schur_max_images)) return ceres::DENSE_SCHUR;
+  if (images <= static_cast<std::size_t>(o.sparse_schur_max_images)) return ceres::SPARSE_SCHUR;
+  return ceres::ITERATIVE_SCHUR;
+}
+
+}  // namespace
+
+const char* to_string(LossKind loss) {
+  switch (loss) {
+    case LossKind::Trivial: return "none";
+    case LossKind::Huber: return "huber";
+    case LossKind::Cauchy: return "cauchy";
+    case LossKind::SoftL1: return "soft-l1";
+  }
+  return "unknown";
+}
+
+const char* to_string(SolverKind solver) {
+  switch (solver) {
+    case SolverKind::Auto: return "auto";
+    case SolverKind::DenseSchur: return "dense-schur";
+    case SolverKind::SparseSchur: return "sparse-schur";
+    case SolverKind::IterativeSchur: return "iterative-schur";
+  }
+  return "unknown";
+}
+
+const char* to_string(IntrinsicsRefinement level) {
+  switch (level) {
+    case IntrinsicsRefinement::None: return "none";
+    case IntrinsicsRefinement::Focal: return "focal";
+    case IntrinsicsRefinement::FocalPrincipalPoint: return "focal-pp";
+    case IntrinsicsRefinement::All: return "all";
+  }
+  return "unknown";
+}
+
+std::vector<int> constant_intrinsics(IntrinsicsRefinement level, int distortion_count) {
+  std::set<int> varying;
+  if (level != IntrinsicsRefinement::None) varying.insert({kFx, kFy});
+  if (level == IntrinsicsRefinement::FocalPrincipalPoint || level == IntrinsicsRefinement::All) {
+    varying.insert({kCx, kCy});
+  }
+  if (level == IntrinsicsRefinement::All) {
+    if (distortion_count >= 4) varying.insert({kK1, kK2, kP1, kP2});
+    if (distortion_count >= 5) varying.insert(kK3);
+    if (distortion_count >= 8) varying.insert({kK4, kK5, kK6});
+    if (distortion_count >= 12) varying.insert({kS1, kS2, kS3, kS4});
+  }
+  std::vector<int> constant;
+  for (int i = 0; i < kIntrinsicCount; ++i) {
+    if (!varying.count(i)) constant.push_back(i);
+  }
+  return constant;
+}
+
+bool in_adjustment(const Scene& scene, std::size_t track, std::size_t active) {
+  const SceneTrack& t = scene.tracks[track];
+  if (t.at_control) return active >= 1;
+  return t.state == TrackState::Triangulated && active >= 2;
+}
+
+double reprojection_error_px(const Scene& scene, std::size_t observation) {
+  const ObservationRef& ob = scene.observations[observation];
+  const auto uv = project_point(scene.camera, scene.images[ob.image].cam_from_world.data(),
+                                scene.tracks[ob.track].xyz_mm);
+  return uv ? (*uv - ob.uv_px).norm() : std::numeric_limits<double>::infinity();
+}
+
+AdjustmentLayout adjustment_layout(const Scene& scene, const BundleSetup& setup, int threads) {
+  AdjustmentLayout l;
+  l.active.resize(scene.tracks.size());
+  l.in_ba.assign(scene.tracks.size(), 0);
+  l.in_bar.assign(scene.tracks.size(), 0);
+  l.image_used.assign(scene.images.size(), 0);
+  parallel_for(scene.tracks.size(), threads, [&](std::size_t begin, std::size_t end) {
+    for (std::size_t t = begin; t < end; ++t) {
+      l.active[t] = scene.active_observations(t);
+      l.in_ba[t] = in_adjustment(scene, t, l.active[t].size()) ? 1 : 0;
+    }
+  });
+  for (std::size_t t = 0; t < scene.tracks.size(); ++t) {
+    if (!l.in_ba[t]) continue;
+    for (std::size_t o : l.active[t]) l.image_used[scene.observations[o].image] = 1;
+  }
+  // Points that appear in a scale bar cannot be eliminated with the others (a residual may hold
+  // only one eliminated block), so they join the cameras in the second elimination group.
+  for (const ScaleConstraint& b : setup.scale_bars) {
+    if (l.in_ba[b.track_a] && l.in_ba[b.track_b] && b.track_a != b.track_b) {
+      l.bars.push_back(&b);
+      l.in_bar[b.track_a] = l.in_bar[b.track_b] = 1;
+    }
+  }
+  return l;
+}
+
+std::shared_ptr<ceres::ParameterBlockOrdering> build_problem(Scene& scene, const BundleSetup& setup,
+                                                             const BundleOptions& options, ceres::Problem& problem,
+                                                             BundleSummary& out) {
+  const bool refine_intrinsics = options.refine_intrinsics != IntrinsicsRefinement::None;
+  double* intrinsics = scene.camera.params.data();
+
+  const AdjustmentLayout layout = adjustment_layout(scene, setup, options.threads);
+  const auto& active = layout.active;
+  const auto& in_ba = layout.in_ba;
+  const auto& in_bar = layout.in_bar;
+  const auto& bars = layout.bars;
+  const auto& image_used = layout.image_used;
+
+  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+  for (std::size_t t = 0; t < scene.tracks.size(); ++t) {
+    if (!in_ba[t]) continue;
+    SceneTrack& track = scene.tracks[t];
+    double* X = track.xyz_mm.data();
+    for (std::size_t o : active[t]) {
+      const ObservationRef& ob = scene.observations[o];
+      double* pose = scene.images[ob.image].cam_from_world.data();
+      ceres::CostFunction* cost =
+          refine_intrinsics ? ReprojectionErrorWithIntrinsics::create(shape_of(scene.camera), ob.uv_px, setup.sigma_of(ob))
+                            : ReprojectionError::create(&scene.camera, ob.uv_px, setup.sigma_of(ob));
+      // The loss acts on whitened residuals: its scale in pixels divided by the same sigma.
+      ceres::LossFunction* loss = make_loss(options.loss, options.loss_scale_px / setup.sigma_of(ob));
+      if (refine_intrinsics) {
+        problem.AddResidualBlock(cost, loss, pose, X, intrinsics);
+      } else {
+        problem.AddResidualBlock(cost, loss, pose, X);
+      }
+    }
+    bool constant = false;
+    if (track.at_control) {
+      if (track.control_sigma_mm) {
+        problem.AddResidualBlock(ControlPointPrior::create(*track.control_mm, *track.control_sigma_mm), nullptr, X);
+      } else {
+        problem.SetParameterBlockConstant(X);
+        constant = true;
+      }
+    }
+    // Constant blocks leave the problem before solving; keep them out of the eliminated group so
+    // that its emptiness below says whether anything is left to eliminate.
+    ordering->AddElementToGroup(X, in_bar[t] || constant ? 1 : 0);
+    ++out.points;
+  }
+  for (const ScaleConstraint* b : bars) {
+    problem.AddResidualBlock(ScaleBarError::create(b->distance_mm, b->sigma_mm), nullptr,
+                             scene.tracks[b->track_a].xyz_mm.data(), scene.tracks[b->track_b].xyz_mm.data());
+  }
+  for (std::size_t i = 0; i < scene.images.size(); ++i) {
+    if (!image_used[i]) continue;
+    double* pose = scene.images[i].cam_from_world.data();
+    ordering->AddElementToGroup(pose, 1);
+    ++out.images;
+    if (setup.fix_poses || (setup.fixed_image && *setup.fixed_image == i)) {
+      problem.SetParameterBlockConstant(pose);
+    } else if (setup.fixed_translation && setup.fixed_translation->first == i) {
+      problem.SetManifold(pose, new ceres::SubsetManifold(6, {3 + setup.fixed_translation->second}));
+    }
+  }
+  if (refine_intrinsics && problem.HasParameterBlock(intrinsics)) {
+    ordering->AddElementToGroup(intrinsics, 1);
+    const std::vector<int> constant = constant_intrinsics(options.refine_intrinsics, scene.camera.distortion_count);
+    if (!constant.empty()) problem.SetManifold(intrinsics, new ceres::SubsetManifold(kIntrinsicCount, constant));
+  }
+  out.residual_blocks = static_cast<std::size_t>(problem.NumResidualBlocks());
+  return ordering;
+}
+
+BundleSummary bundle_adjust(Scene& scene, const BundleSetup& setup, const BundleOptions& options) {
+  BundleSummary out;
+  ceres::Problem problem;
+  const auto ordering = build_problem(scene, setup, options, problem, out);
+  if (out.residual_blocks == 0) return out;
+
+  ceres::Solver::Options so;
+  so.linear_solver_type = choose_solver(options, out.images);
+  so.preconditioner_type = ceres::SCHUR_JACOBI;
+  if (ordering->GroupSize(0) > 0) {
+    so.linear_solver_ordering = ordering;
+  } else {
+    // Nothing to eliminate (every point is in a scale bar): a plain sparse solve.
+    so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  }
+  so.max_num_iterations = options.max_iterations;
+  so.function_tolerance = options.function_tolerance;
+  so.gradient_tolerance = options.gradient_tolerance;
+  so.parameter_tolerance = options.parameter_tolerance;
+  so.num_threads = thread_count(options.threads);
+  so.logging_type = ceres::SILENT;
+  so.minimizer_progress_to_stdout = false;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+
+  out.iterations = static_cast<int>(summary.iterations.size()) - 1;
+  out.seconds = summary.total_time_in_seconds;
+  out.initial_cost = summary.initial_cost;
+  out.final_cost = summary.final_cost;
+  out.usable = summary.IsSolutionUsable();
+  out.solver = ceres::LinearSolverTypeToString(summary.linear_solver_type_used);
+  out.message = summary.message;
+  out.timing = "preprocessor " + std::to_string(summary.preprocessor_time_in_seconds) + " s, residuals " +
+               std::to_string(summary.residual_evaluation_time_in_seconds) + " s, jacobians " +
+               std::to_string(summary.jacobian_evaluation_time_in_seconds) + " s, linear solver " +
+               std::to_string(summary.linear_solver_time_in_seconds) + " s, postprocessor " +
+               std::to_string(summary.postprocessor_time_in_seconds) + " s";
+  return out;
+}
+
+}  // namespace photomill::triangulate

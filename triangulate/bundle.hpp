@@ -1,0 +1,118 @@
+// Bundle adjustment with Ceres: camera poses, 3D points and optionally the intrinsics, minimising
+// the whitened reprojection errors (robust loss) plus control-point priors and scale bars.
+// Points are eliminated first (Schur complement), so hundreds of images and 100k points stay fast.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <ceres/problem.h>
+#include <ceres/ordered_groups.h>
+
+#include "triangulate/scene.hpp"
+
+namespace photomill::triangulate {
+
+enum class LossKind { Trivial, Huber, Cauchy, SoftL1 };
+enum class SolverKind { Auto, DenseSchur, SparseSchur, IterativeSchur };
+enum class IntrinsicsRefinement { None, Focal, FocalPrincipalPoint, All };
+
+struct BundleOptions {
+  // Robust loss on each reprojection residual and its scale, pixels: residuals up to about this
+  // size count fully, larger ones less (Huber: linearly, Cauchy: logarithmically).
+  LossKind loss = LossKind::Huber;
+  double loss_scale_px = 1.0;
+  // Linear solver. Auto: DENSE_SCHUR up to dense_schur_max_images images, SPARSE_SCHUR up to
+  // sparse_schur_max_images, ITERATIVE_SCHUR (Schur-Jacobi preconditioner) beyond.
+  SolverKind solver = SolverKind::Auto;
+  int dense_schur_max_images = 50;
+  int sparse_schur_max_images = 2000;
+  // Stopping rules (Ceres' meaning): iterations, and relative decrease of the cost, gradient
+  // size and step size below which the solver stops.
+  int max_iterations = 100;
+  double function_tolerance = 1e-10;
+  double gradient_tolerance = 1e-12;
+  double parameter_tolerance = 1e-10;
+  int threads = 0;  // 0: all hardware threads
+  IntrinsicsRefinement refine_intrinsics = IntrinsicsRefinement::None;
+};
+
+// A known distance between two tracks (from a scale-bar file or a marker side).
+struct ScaleConstraint {
+  std::size_t track_a = 0;    // index into Scene::tracks
+  std::size_t track_b = 0;
+  double distance_mm = 0;
+  double sigma_mm = 0;
+};
+
+// The datum and weights of one adjustment.
+struct BundleSetup {
+  // Reprojection residuals are divided by the sigma of their observation's class (pixels).
+  std::array<double, kObservationClasses> observation_sigma_px{1, 1};
+  double sigma_of(const ObservationRef& ob) const { return observation_sigma_px[static_cast<std::size_t>(ob.cls)]; }
+  std::vector<ScaleConstraint> scale_bars;   // used when both tracks are in the adjustment
+  std::optional<std::size_t> fixed_image;    // gauge: this image's pose is held constant
+  // Gauge: one coordinate (0..2) of this image's translation is held constant (fixes the scale
+  // of a reconstruction without any scale information, as COLMAP does).
+  std::optional<std::pair<std::size_t, int>> fixed_translation;
+  // Hold all poses constant (a structure-only adjustment).
+  bool fix_poses = false;
+};
+
+struct BundleSummary {
+  int iterations = 0;
+  double seconds = 0;
+  double initial_cost = 0;       // Ceres' cost 1/2 sum rho(r^2), whitened
+  double final_cost = 0;
+  bool usable = false;
+  std::size_t residual_blocks = 0;
+  std::size_t images = 0;        // poses in the adjustment
+  std::size_t points = 0;        // points in the adjustment
+  std::string solver;            // linear solver used
+  std::string message;           // Ceres' termination message
+  std::string timing;            // where the time went (preprocessing, Jacobians, linear solver)
+};
+
+// Which tracks take part: Triangulated ones with two or more active observations, and control
+// tracks placed at their control value (at_control) with one or more (fixed when they have no
+// sigma, else held by ControlPointPrior).
+bool in_adjustment(const Scene& scene, std::size_t track, std::size_t active_observations);
+
+// Who takes part in an adjustment (shared by bundle_adjust and the covariance).
+struct AdjustmentLayout {
+  std::vector<std::vector<std::size_t>> active;  // per track: its active observations
+  std::vector<char> in_ba;                       // per track: in the adjustment
+  std::vector<char> in_bar;                      // per track: end of a scale bar in use
+  std::vector<char> image_used;                  // per image: has observations in the adjustment
+  std::vector<const ScaleConstraint*> bars;      // scale bars with both ends in the adjustment
+};
+AdjustmentLayout adjustment_layout(const Scene& scene, const BundleSetup& setup, int threads);
+
+// Builds the Ceres problem of an adjustment over the scene's own parameter blocks (poses,
+// points, intrinsics); returns the elimination ordering (points first) for the Schur solvers.
+// Counts the images and points taken into `summary`.
+std::shared_ptr<ceres::ParameterBlockOrdering> build_problem(Scene& scene, const BundleSetup& setup,
+                                                             const BundleOptions& options, ceres::Problem& problem,
+                                                             BundleSummary& summary);
+
+// Adjusts scene poses, points (and intrinsics, if asked) in place.
+BundleSummary bundle_adjust(Scene& scene, const BundleSetup& setup, const BundleOptions& options);
+
+// Indices into IntrinsicIndex that stay constant under a refinement level, for a camera with
+// `distortion_count` coefficients from camera.yaml.
+std::vector<int> constant_intrinsics(IntrinsicsRefinement level, int distortion_count);
+
+// Reprojection error in pixels of one observation with the current estimates (infinity if the
+// point is behind the camera).
+double reprojection_error_px(const Scene& scene, std::size_t observation);
+
+const char* to_string(LossKind loss);
+const char* to_string(SolverKind solver);
+const char* to_string(IntrinsicsRefinement level);
+
+}  // namespace photomill::triangulate

@@ -1,0 +1,114 @@
+// The camera model used by triangulate: a pinhole with OpenCV's distortion, in a flat parameter
+// block for Ceres, with a templated projection (for automatic differentiation) and its inverse
+// (pixel -> undistorted normalised coordinates) by Newton's method.
+// Pixel convention: OpenCV's (centre of the top-left pixel at (0, 0)).
+#pragma once
+
+#include <array>
+#include <optional>
+#include <string>
+
+#include <Eigen/Core>
+#include <ceres/rotation.h>
+
+#include "formats/camera.hpp"
+
+namespace photomill::triangulate {
+
+// Layout of the intrinsics parameter block (OpenCV's model, coefficients in OpenCV's order
+// after the four linear terms). Coefficients missing from camera.yaml are zero.
+enum IntrinsicIndex : int {
+  kFx = 0, kFy, kCx, kCy,              // pixels
+  kK1, kK2, kP1, kP2, kK3,             // radial k1 k2 k3, tangential p1 p2
+  kK4, kK5, kK6,                       // rational model denominator
+  kS1, kS2, kS3, kS4,                  // thin prism
+  kIntrinsicCount
+};
+using Intrinsics = std::array<double, kIntrinsicCount>;
+
+// The camera as triangulate uses it: the parameter block, the skew (constant; OpenCV's own
+// functions ignore it and its calibration never sets it) and the image size.
+struct CameraModel {
+  Intrinsics params{};
+  double skew = 0;                 // camera_matrix(0, 1), pixels
+  int width_px = 0;
+  int height_px = 0;
+  int distortion_count = 0;        // how many coefficients camera.yaml gave (0, 4, 5, 8, 12, 14)
+};
+
+// Which groups of distortion terms the model evaluates. Decided by the number of coefficients
+// camera.yaml gave (not by their values, so that self-calibration can move a zero one):
+// rational k4..k6 with 8 or more, thin prism s1..s4 with 12 or more. Skipping absent groups is
+// exact (their coefficients are zero) and saves work in every residual.
+struct ModelShape {
+  double skew = 0;
+  bool rational = false;
+  bool thin_prism = false;
+};
+inline ModelShape shape_of(const CameraModel& m) {
+  return {m.skew, m.distortion_count >= 8, m.distortion_count >= 12};
+}
+
+// Converts camera.yaml's camera. Throws InputError(source, 0, ...) for the tilted-sensor model
+// (14 coefficients with tau_x or tau_y non-zero), which triangulate does not implement.
+CameraModel to_camera_model(const Camera& camera, const std::string& source);
+// Back to camera.yaml's form (same number of distortion coefficients as read).
+Camera to_camera(const CameraModel& model, const Camera& original);
+
+// OpenCV's distortion and projection (cv::projectPoints, docs of calib3d), for a point (x, y)
+// in normalised camera coordinates (X/Z, Y/Z):
+//   r^2 = x^2 + y^2
+//   radial = (1 + k1 r^2 + k2 r^4 + k3 r^6) / (1 + k4 r^2 + k5 r^4 + k6 r^6)
+//   x'' = x radial + 2 p1 x y + p2 (r^2 + 2 x^2) + s1 r^2 + s2 r^4
+//   y'' = y radial + p1 (r^2 + 2 y^2) + 2 p2 x y + s3 r^2 + s4 r^4
+//   u = fx x'' + skew y'' + cx,   v = fy y'' + cy
+// `k` is the parameter block (IntrinsicIndex layout), double or a Jet for self-calibration.
+template <typename T, typename P>
+void distort_to_pixel(const ModelShape& shape, const P* k, const T& x, const T& y, T* u, T* v) {
+  const T r2 = x * x + y * y;
+  const T r4 = r2 * r2;
+  T radial = T(1.0) + k[kK1] * r2 + k[kK2] * r4 + k[kK3] * (r4 * r2);
+  if (shape.rational) radial /= T(1.0) + k[kK4] * r2 + k[kK5] * r4 + k[kK6] * (r4 * r2);
+  const T xy = x * y;
+  T xd = x * radial + T(2.0) * k[kP1] * xy + k[kP2] * (r2 + T(2.0) * x * x);
+  T yd = y * radial + k[kP1] * (r2 + T(2.0) * y * y) + T(2.0) * k[kP2] * xy;
+  if (shape.thin_prism) {
+    xd += k[kS1] * r2 + k[kS2] * r4;
+    yd += k[kS3] * r2 + k[kS4] * r4;
+  }
+  *u = k[kFx] * xd + k[kCx];
+  if (shape.skew != 0) *u += T(shape.skew) * yd;
+  *v = k[kFy] * yd + k[kCy];
+}
+
+// Projection of a world point with pose cam_from_world = [angle-axis (3, rad), t (3, mm)]:
+//   x_cam = R(aa) X + t  (the paper's x_cam = R X + T, section 3.2), then distort_to_pixel.
+// Returns false (outputs untouched) if the point is not in front of the camera (z <= 0).
+template <typename T, typename P>
+bool project(const ModelShape& shape, const P* intrinsics, const T* cam_from_world, const T* point_mm, T* uv) {
+  T p[3];
+  ceres::AngleAxisRotatePoint(cam_from_world, point_mm, p);
+  p[0] += cam_from_world[3];
+  p[1] += cam_from_world[4];
+  p[2] += cam_from_world[5];
+  if (!(p[2] > T(0.0))) return false;
+  distort_to_pixel(shape, intrinsics, p[0] / p[2], p[1] / p[2], &uv[0], &uv[1]);
+  return true;
+}
+
+struct UndistortOptions {
+  int max_iterations = 50;          // Newton steps
+  double tolerance_px = 1e-10;      // stop when the pixel residual is below this
+};
+
+// Inverse of distort_to_pixel: the normalised (x, y) whose distorted pixel is uv, by Newton's
+// method from the undistorted guess K^-1 uv. nullopt if it does not converge (the distortion
+// folds over there, or the pixel lies far outside the calibrated field).
+std::optional<Eigen::Vector2d> undistort(const CameraModel& camera, const Eigen::Vector2d& uv_px,
+                                         const UndistortOptions& options = {});
+
+// Pixel of a world point for a pose given as [angle-axis, t]; nullopt behind the camera.
+std::optional<Eigen::Vector2d> project_point(const CameraModel& camera, const double* cam_from_world,
+                                             const Eigen::Vector3d& point_mm);
+
+}  // namespace photomill::triangulate

@@ -1,0 +1,173 @@
+// triangulate's options (see cli.hpp).
+#include "triangulate/cli.hpp"
+
+#include <map>
+
+#include "formats/error.hpp"
+#include "formats/text.hpp"
+#include "formats/tool.hpp"
+
+namespace photomill::triangulate {
+namespace {
+
+const std::map<std::string, LossKind> kLoss{
+    {"huber", LossKind::Huber}, {"cauchy", LossKind::Cauchy}, {"soft-l1", LossKind::SoftL1}, {"none", LossKind::Trivial}};
+const std::map<std::string, SolverKind> kSolver{{"auto", SolverKind::Auto},
+                                                {"dense-schur", SolverKind::DenseSchur},
+                                                {"sparse-schur", SolverKind::SparseSchur},
+                                                {"iterative-schur", SolverKind::IterativeSchur}};
+const std::map<std::string, IntrinsicsRefinement> kRefine{{"none", IntrinsicsRefinement::None},
+                                                          {"focal", IntrinsicsRefinement::Focal},
+                                                          {"focal-pp", IntrinsicsRefinement::FocalPrincipalPoint},
+                                                          {"all", IntrinsicsRefinement::All}};
+
+template <typename Map>
+std::vector<std::string> keys(const Map& m) {
+  std::vector<std::string> k;
+  for (const auto& [key, value] : m) k.push_back(key);
+  return k;
+}
+
+// "0-27,40,50-55" -> {{0, 27}, {40, 40}, {50, 55}}.
+std::vector<std::pair<std::int64_t, std::int64_t>> parse_ranges(const std::string& text) {
+  std::vector<std::pair<std::int64_t, std::int64_t>> ranges;
+  for (std::string_view part : split_fields(text, ',')) {
+    const auto dash = part.find('-', 1);
+    const auto lo = parse_int(part.substr(0, dash));
+    const auto hi = dash == std::string_view::npos ? lo : parse_int(part.substr(dash + 1));
+    if (!lo || !hi || *lo < 0 || *hi < *lo) {
+      throw UsageError("--marker-ids: '" + std::string(part) + "' is not an id or a range like 0-27");
+    }
+    ranges.push_back({*lo, *hi});
+  }
+  return ranges;
+}
+
+}  // namespace
+
+void add_options(CLI::App& app, Cli& c) {
+  ReconstructOptions& o = c.options;
+  app.add_option("tracks", c.tracks, "Tracks CSV (track_id,image,u_px,v_px); '-' for stdin")->capture_default_str();
+  // Required, but checked in to_options() so that an unknown option is named first.
+  app.add_option("-c,--camera", c.camera, "Camera intrinsics (camera.yaml), required");
+  app.add_option("--control-points", c.control_points,
+                 "Control points CSV (point_id,x_mm,y_mm,z_mm[,sigma_mm]): the datum; held fixed, or weighted by sigma_mm");
+  app.add_option("-o,--output", c.output, "Point cloud PLY ('-': stdout)")->capture_default_str();
+  app.add_option("--ply-encoding", c.ply_encoding, "PLY encoding")
+      ->check(CLI::IsMember({"binary", "ascii"}))->capture_default_str();
+  app.add_option("--poses", c.poses, "Write the camera poses CSV (cam_from_world) here");
+  app.add_option("--report", c.report, "Write the report as JSON here (it also goes to stderr as text)");
+  app.add_option("--colmap", c.colmap, "Write a COLMAP text model (cameras.txt, images.txt, points3D.txt) into this folder");
+  app.add_option("--refined-camera", c.refined_camera, "Write the camera.yaml after --refine-intrinsics here");
+
+  const std::string scale = "Scale without control points";
+  app.add_option("--scale-bars", c.scale_bars, "Scale bars CSV (point_a,point_b,distance_mm[,sigma_mm])")->group(scale);
+  app.add_option("--scale-bar-sigma-mm", o.scale.default_bar_sigma_mm, "Sigma of scale bars that give none")
+      ->check(CLI::PositiveNumber)->capture_default_str()->group(scale);
+  app.add_option("--marker-side-mm", c.marker_side_mm, "Side of the square markers: each side becomes a scale bar")
+      ->check(CLI::PositiveNumber)->group(scale);
+  app.add_option("--marker-side-sigma-mm", o.scale.marker_side_sigma_mm, "Sigma of a marker side")
+      ->check(CLI::PositiveNumber)->capture_default_str()->group(scale);
+  app.add_option("--marker-ids", c.marker_ids, "Marker ids the side applies to (ranges: 0-27,40)")
+      ->capture_default_str()->group(scale);
+  app.add_option("--marker-side-tolerance", o.scale.marker_side_tolerance,
+                 "Leave out marker sides further than this fraction from the median side")
+      ->check(CLI::PositiveNumber)->capture_default_str()->group(scale);
+  app.add_flag("--arbitrary-scale", o.scale.allow_arbitrary_scale,
+               "Without any datum, go on in the arbitrary scale of the first image pair")->group(scale);
+
+  const std::string ba = "Bundle adjustment";
+  app.add_option("--refine-intrinsics", c.refine_intrinsics, "Self-calibration: which intrinsics to adjust")
+      ->check(CLI::IsMember(keys(kRefine)))->capture_default_str()->group(ba);
+  app.add_option("--loss", c.loss, "Robust loss on reprojection errors")
+      ->check(CLI::IsMember(keys(kLoss)))->capture_default_str()->group(ba);
+  app.add_option("--loss-scale-px", o.bundle.loss_scale_px, "Scale of the robust loss, pixels")
+      ->check(CLI::PositiveNumber)->capture_default_str()->group(ba);
+  app.add_option("--observation-sigma-px", c.observation_sigma_px,
+                 "Sigma of an image measurement [default: estimated from the residuals, per class]")
+      ->check(CLI::PositiveNumber)->group(ba);
+  app.add_option("--coded-id-limit", o.coded_id_limit,
+                 "Track ids below this are coded targets (marker corners), the rest natural features; "
+                 "each class gets its own sigma")
+      ->check(CLI::NonNegativeNumber)->capture_default_str()->group(ba);
+  app.add_option("--outlier-sigmas", o.outliers.sigmas, "Remove observations beyond this many sigmas ...")
+      ->check(CLI::PositiveNumber)->capture_default_str()->group(ba);
+  app.add_option("--outlier-min-px", o.outliers.min_px, "... but never below this threshold ...")
+      ->check(CLI::NonNegativeNumber)->capture_default_str()->group(ba);
+  app.add_option("--outlier-max-px", o.outliers.max_px, "... and always beyond this one")
+      ->check(CLI::PositiveNumber)->capture_default_str()->group(ba);
+  app.add_option("--outlier-rounds", o.outliers.rounds, "Outlier removal and re-solve rounds")
+      ->check(CLI::Range(0, 100))->capture_default_str()->group(ba);
+  app.add_option("--solver", c.solver, "Ceres linear solver")
+      ->check(CLI::IsMember(keys(kSolver)))->capture_default_str()->group(ba);
+  app.add_option("--max-iterations", o.bundle.max_iterations, "Ceres iterations per adjustment")
+      ->check(CLI::Range(1, 100000))->capture_default_str()->group(ba);
+  app.add_option("--function-tolerance", o.bundle.function_tolerance, "Stop when the cost decreases by less (relative)")
+      ->check(CLI::PositiveNumber)->capture_default_str()->group(ba);
+  app.add_option("--covariance-max-parameters", o.covariance.max_reduced_parameters,
+                 "Largest reduced camera system inverted for the full point covariance")
+      ->capture_default_str()->group(ba);
+  app.add_option("--threads", o.threads, "Threads (0: all cores)")->check(CLI::Range(0, 1024))->capture_default_str()->group(ba);
+
+  const std::string geo = "Poses and triangulation";
+  app.add_option("--min-angle-deg", o.triangulation.min_angle_deg, "Smallest intersection angle of a track's rays")
+      ->check(CLI::NonNegativeNumber)->capture_default_str()->group(geo);
+  app.add_option("--max-reproj-px", o.triangulation.max_reproj_px, "Largest reprojection error when triangulating")
+      ->check(CLI::PositiveNumber)->capture_default_str()->group(geo);
+  app.add_option("--ransac-threshold-px", o.ransac.threshold_px, "RANSAC inlier threshold (PnP, essential matrix)")
+      ->check(CLI::PositiveNumber)->capture_default_str()->group(geo);
+  app.add_option("--ransac-confidence", o.ransac.confidence, "RANSAC confidence")
+      ->check(CLI::Range(0.5, 1.0))->capture_default_str()->group(geo);
+  app.add_option("--ransac-iterations", o.ransac.max_iterations, "RANSAC iterations at most")
+      ->check(CLI::Range(1, 10000000))->capture_default_str()->group(geo);
+  app.add_option("--control-min-points", o.control_min_points, "Control points an image needs for PnP from them")
+      ->check(CLI::Range(4, 1000000))->capture_default_str()->group(geo);
+  app.add_option("--pnp-min-inliers", o.pnp_min_inliers, "Inliers PnP against triangulated points needs")
+      ->check(CLI::Range(4, 1000000))->capture_default_str()->group(geo);
+  app.add_option("--min-shared-tracks", o.min_shared_tracks, "Tracks an initial image pair must share")
+      ->check(CLI::Range(5, 1000000))->capture_default_str()->group(geo);
+  app.add_option("--initial-min-angle-deg", o.initial_min_angle_deg, "Median intersection angle of the initial pair")
+      ->check(CLI::NonNegativeNumber)->capture_default_str()->group(geo);
+}
+
+ReconstructOptions to_options(const Cli& c) {
+  if (c.camera.empty()) throw UsageError("--camera is required: the camera.yaml of the photos");
+  ReconstructOptions o = c.options;
+  o.bundle.loss = kLoss.at(c.loss);
+  o.bundle.solver = kSolver.at(c.solver);
+  o.bundle.refine_intrinsics = kRefine.at(c.refine_intrinsics);
+  o.bundle.threads = o.threads;
+  o.covariance.threads = o.threads;
+  o.scale.marker_side_mm = c.marker_side_mm;
+  o.scale.marker_ids = parse_ranges(c.marker_ids);
+  o.observation_sigma_px = c.observation_sigma_px;
+  if (o.outliers.min_px > o.outliers.max_px) throw UsageError("--outlier-min-px is larger than --outlier-max-px");
+  if (!c.refined_camera.empty() && o.bundle.refine_intrinsics == IntrinsicsRefinement::None) {
+    throw UsageError("--refined-camera needs --refine-intrinsics");
+  }
+  int to_stdout = 0;
+  for (const std::string* p : {&c.output, &c.poses, &c.report, &c.refined_camera}) to_stdout += *p == "-" ? 1 : 0;
+  if (c.output.empty()) ++to_stdout;
+  if (to_stdout > 1) throw UsageError("only one output can go to stdout ('-')");
+  if (c.tracks == "-" && (c.camera == "-" || c.control_points == "-" || c.scale_bars == "-")) {
+    throw UsageError("only one input can come from stdin ('-')");
+  }
+  return o;
+}
+
+ReconstructInput read_input(const Cli& c) {
+  ReconstructInput in;
+  in.camera_source = tool::source_name(c.camera);
+  in.camera = read_camera_yaml(*tool::open_input(c.camera), in.camera_source);
+  in.tracks_source = tool::source_name(c.tracks);
+  in.tracks = read_tracks(*tool::open_input(c.tracks), in.tracks_source);
+  if (!c.control_points.empty()) {
+    in.control_points = read_control_points(*tool::open_input(c.control_points), tool::source_name(c.control_points));
+  }
+  if (!c.scale_bars.empty()) {
+    in.scale_bars = read_scale_bars(*tool::open_input(c.scale_bars), tool::source_name(c.scale_bars));
+  }
+  return in;
+}
+
+}  // namespace photomill::triangulate

@@ -1,0 +1,40 @@
+// triangulate's command line: every option of ReconstructOptions as a long CLI11 option, the
+// input files, and the outputs. Kept out of main.cpp so main stays a short sequence.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "triangulate/reconstruct.hpp"
+
+namespace photomill::triangulate {
+
+struct Cli {
+  std::string tracks = "-";
+  std::string camera;
+  std::string control_points;
+  std::string scale_bars;
+  std::string output = "-";
+  std::string ply_encoding = "binary";
+  std::string poses;
+  std::string report;
+  std::string colmap;
+  std::string refined_camera;
+  std::string loss = "huber";
+  std::string solver = "auto";
+  std::string refine_intrinsics = "none";
+  std::string marker_ids = "0-1023";
+  std::optional<double> marker_side_mm;
+  std::optional<double> observation_sigma_px;
+  ReconstructOptions options;
+};
+
+void add_options(CLI::App& app, Cli& cli);
+// Converts the parsed strings (enums, id ranges) into the options; throws UsageError.
+ReconstructOptions to_options(const Cli& cli);
+// Reads the input files named on the command line; throws InputError naming file and line.
+ReconstructInput read_input(const Cli& cli);
+
+}  // namespace photomill::triangulate

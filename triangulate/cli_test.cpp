@@ -1,0 +1,165 @@
+// Golden command-line cases for triangulate (after PROJ's test_cct.yaml): bad inputs name the
+// file and line and leave no output; degenerate input is explained; a good run writes every
+// output, readable by photomill's own readers; stdin/stdout work as a filter.
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "formats/camera.hpp"
+#include "formats/point_cloud.hpp"
+#include "formats/tables.hpp"
+#include "tests/run_tool.hpp"
+#include "tests/temp_dir.hpp"
+#include "triangulate/test_scene.hpp"
+
+namespace photomill::triangulate {
+namespace {
+
+using photomill::test::run_tool;
+using photomill::test::TempDir;
+namespace fs = std::filesystem;
+
+// A scene's files in a temporary folder: tracks.csv, camera.yaml, control.csv, bars.csv.
+class SceneFiles {
+public:
+  SceneFiles() : truth_(test::make_scene({})) {
+    write("tracks.csv", [&](std::ostream& s) { write_tracks(s, truth_.tracks); });
+    write("camera.yaml", [&](std::ostream& s) { write_camera_yaml(s, truth_.camera); });
+    write("control.csv", [&](std::ostream& s) { write_control_points(s, truth_.plate_points); });
+    std::vector<ScaleBar> bars;
+    const auto& p = truth_.plate_points;
+    bars.push_back({p.front().point_id, p.back().point_id, (p.front().xyz_mm - p.back().xyz_mm).norm(), 0.001});
+    write("bars.csv", [&](std::ostream& s) { write_scale_bars(s, bars); });
+  }
+  template <typename F>
+  void write(const std::string& name, const F& f) {
+    std::ofstream out(dir_.path() / name, std::ios::binary);
+    f(out);
+  }
+  std::string path(const std::string& name) const { return (dir_.path() / name).string(); }
+  std::string text(const std::string& name) const { return photomill::test::read_file(dir_.path() / name); }
+  const test::SceneTruth& truth() const { return truth_; }
+
+private:
+  TempDir dir_;
+  test::SceneTruth truth_;
+};
+
+struct ErrorCase {
+  const char* name;
+  std::function<std::vector<std::string>(SceneFiles&)> args;
+  int exit_code;
+  const char* stderr_has;
+};
+
+void PrintTo(const ErrorCase& c, std::ostream* os) { *os << c.name; }
+
+class TriangulateCliError : public ::testing::TestWithParam<ErrorCase> {};
+
+TEST_P(TriangulateCliError, FailsCleanly) {
+  SceneFiles f;
+  const ErrorCase& c = GetParam();
+  const auto r = run_tool("triangulate", c.args(f));
+  EXPECT_EQ(r.exit_code, c.exit_code) << r.err;
+  EXPECT_NE(r.err.find(c.stderr_has), std::string::npos) << r.err;
+  EXPECT_EQ(r.out, "");
+  EXPECT_FALSE(fs::exists(f.path("cloud.ply"))) << "no output may be left behind";
+  EXPECT_FALSE(fs::exists(f.path("poses.csv")));
+}
+
+const std::vector<ErrorCase> kErrors = {
+    {"missing_tracks",
+     [](SceneFiles& f) { return std::vector<std::string>{f.path("nope.csv"), "-c", f.path("camera.yaml"), "--control-points", f.path("control.csv"), "-o", f.path("cloud.ply")}; },
+     1, "nope.csv: cannot open"},
+    {"missing_camera_file",
+     [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "-c", f.path("none.yaml"), "--control-points", f.path("control.csv"), "-o", f.path("cloud.ply")}; },
+     1, "none.yaml"},
+    {"malformed_line",
+     [](SceneFiles& f) {
+       f.write("bad.csv", [](std::ostream& s) { s << "track_id,image,u_px,v_px\n1,a.png,1,2\n2,a.png,3\n"; });
+       return std::vector<std::string>{f.path("bad.csv"), "-c", f.path("camera.yaml"), "--control-points", f.path("control.csv"), "-o", f.path("cloud.ply")};
+     },
+     1, "bad.csv:3:"},
+    {"malformed_control_points",
+     [](SceneFiles& f) {
+       f.write("badc.csv", [](std::ostream& s) { s << "point_id,x_mm,y_mm,z_mm\n1,0,0,nan\n"; });
+       return std::vector<std::string>{f.path("tracks.csv"), "-c", f.path("camera.yaml"), "--control-points", f.path("badc.csv"), "-o", f.path("cloud.ply")};
+     },
+     1, "badc.csv:2:"},
+    {"camera_required",
+     [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "-o", f.path("cloud.ply")}; }, 2,
+     "--camera"},
+    {"no_datum",
+     [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "-c", f.path("camera.yaml"), "-o", f.path("cloud.ply"), "--poses", f.path("poses.csv")}; },
+     2, "no datum"},
+    {"two_outputs_on_stdout",
+     [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "-c", f.path("camera.yaml"), "--arbitrary-scale", "--poses", "-"}; },
+     2, "stdout"},
+    {"bad_loss",
+     [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "-c", f.path("camera.yaml"), "--loss", "tukey"}; },
+     2, "--loss"},
+    {"bad_marker_ids",
+     [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "-c", f.path("camera.yaml"), "--marker-side-mm", "24", "--marker-ids", "9-3", "-o", f.path("cloud.ply")}; },
+     2, "--marker-ids"},
+    {"one_image",
+     [](SceneFiles& f) {
+       f.write("one.csv", [&](std::ostream& s) {
+         std::vector<TrackObservation> t;
+         for (const auto& o : f.truth().tracks) {
+           if (o.image == f.truth().poses[0].image) t.push_back(o);
+         }
+         write_tracks(s, t);
+       });
+       return std::vector<std::string>{f.path("one.csv"), "-c", f.path("camera.yaml"), "--control-points", f.path("control.csv"), "-o", f.path("cloud.ply"), "--poses", f.path("poses.csv")};
+     },
+     1, "one image"},
+};
+
+INSTANTIATE_TEST_SUITE_P(Triangulate, TriangulateCliError, ::testing::ValuesIn(kErrors));
+
+TEST(TriangulateCli, WritesEveryOutput) {
+  SceneFiles f;
+  const auto r = run_tool("triangulate", {f.path("tracks.csv"), "-c", f.path("camera.yaml"), "--control-points",
+                                          f.path("control.csv"), "-o", f.path("cloud.ply"), "--poses", f.path("poses.csv"),
+                                          "--report", f.path("report.json"), "--colmap", f.path("model")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out, "");
+  EXPECT_NE(r.err.find("datum: control_points"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("reprojection RMS"), std::string::npos) << r.err;
+
+  std::istringstream ply(f.text("cloud.ply"));
+  const PointCloud cloud = read_ply(ply, "cloud.ply");
+  EXPECT_EQ(cloud.points_mm.size(), f.truth().plate_points.size() + f.truth().part_points.size());
+  for (const char* p : {"track_id", "views", "reproj_rms_px", "sigma_mm", "control"}) EXPECT_NE(cloud.find(p), nullptr) << p;
+
+  std::istringstream poses_text(f.text("poses.csv"));
+  const auto poses = read_poses(poses_text, "poses.csv");
+  ASSERT_EQ(poses.size(), f.truth().poses.size());
+  std::map<std::string, Eigen::Vector3d> truth;
+  for (const auto& p : f.truth().poses) truth[p.image] = p.centre_mm();
+  for (const auto& p : poses) EXPECT_LT((p.centre_mm() - truth.at(p.image)).norm(), 0.1) << p.image;
+
+  const std::string report = f.text("report.json");
+  for (const char* key : {"\"datum\":{\"type\":\"control_points\"", "\"final_rms_px\":", "\"per_image\":[",
+                          "\"removed_observations\":[", "\"scale_bars\":[", "\"uncertainty\":{\"method\":"}) {
+    EXPECT_NE(report.find(key), std::string::npos) << key << " in " << report;
+  }
+  for (const char* file : {"cameras.txt", "images.txt", "points3D.txt"}) EXPECT_TRUE(fs::exists(f.path("model/") + file)) << file;
+}
+
+TEST(TriangulateCli, WorksAsAFilter) {
+  SceneFiles f;
+  const auto r = run_tool("triangulate", {"-", "-c", f.path("camera.yaml"), "--scale-bars", f.path("bars.csv"),
+                                          "--ply-encoding", "ascii", "-q"},
+                          f.text("tracks.csv"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, "") << "-q keeps stderr quiet";
+  std::istringstream ply(r.out);
+  const PointCloud cloud = read_ply(ply, "<stdout>");
+  EXPECT_EQ(cloud.points_mm.size(), f.truth().plate_points.size() + f.truth().part_points.size());
+}
+
+}  // namespace
+}  // namespace photomill::triangulate

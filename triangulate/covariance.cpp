@@ -1,0 +1,322 @@
+// Point uncertainty from the normal equations (see covariance.hpp).
+#include "triangulate/covariance.hpp"
+
+#include <cmath>
+#include <limits>
+
+#include <ceres/jet.h>
+#include <Eigen/Cholesky>
+#include <Eigen/Dense>
+
+#include "triangulate/parallel.hpp"
+
+namespace photomill::triangulate {
+namespace {
+
+constexpr int kPoseJetSize = 6 + 3;
+constexpr int kFullJetSize = 6 + 3 + kIntrinsicCount;
+
+// Whitened reprojection residual r (2) and its Jacobian with respect to [pose 6 | point 3 |
+// intrinsics 16 (only when `with_intrinsics`)], by dual numbers (camera_model.hpp's project()).
+template <int N>
+bool observation_jacobian(const Scene& scene, const ObservationRef& ob, double inv_sigma,
+                          Eigen::Matrix<double, 2, Eigen::Dynamic>& J, Eigen::Vector2d& r) {
+  using Jet = ceres::Jet<double, N>;
+  const PoseBlock& pose = scene.images[ob.image].cam_from_world;
+  const Eigen::Vector3d& X = scene.tracks[ob.track].xyz_mm;
+  Jet p[6], x[3], k[kIntrinsicCount], uv[2];
+  for (int i = 0; i < 6; ++i) p[i] = Jet(pose[static_cast<std::size_t>(i)], i);
+  for (int i = 0; i < 3; ++i) x[i] = Jet(X[i], 6 + i);
+  for (int i = 0; i < kIntrinsicCount; ++i) {
+    const double value = scene.camera.params[static_cast<std::size_t>(i)];
+    k[i] = N == kFullJetSize ? Jet(value, 9 + i) : Jet(value);
+  }
+  if (!project(shape_of(scene.camera), k, p, x, uv)) return false;
+  J.resize(2, N);
+  for (int i = 0; i < 2; ++i) J.row(i) = uv[i].v.transpose() * inv_sigma;
+  r << (uv[0].a - ob.uv_px.x()) * inv_sigma, (uv[1].a - ob.uv_px.y()) * inv_sigma;
+  return true;
+}
+
+// Column bookkeeping: global column of each local parameter in the reduced (f) system, -1 when
+// the parameter is constant or eliminated.
+struct Columns {
+  std::vector<std::array<int, 6>> pose;                // per image
+  std::array<int, kIntrinsicCount> intrinsics{};
+  std::vector<std::array<int, 3>> point;               // per track, f-points only
+  std::vector<char> eliminated;                        // per track: an e-point
+  std::vector<char> variable;                          // per track: point is a free parameter
+  int f = 0;                                           // size of the reduced system
+  std::size_t e_points = 0;
+};
+
+Columns assign_columns(const Scene& scene, const BundleSetup& setup, const BundleOptions& bundle,
+                       const AdjustmentLayout& layout) {
+  Columns c;
+  c.pose.assign(scene.images.size(), {-1, -1, -1, -1, -1, -1});
+  c.intrinsics.fill(-1);
+  c.point.assign(scene.tracks.size(), {-1, -1, -1});
+  c.eliminated.assign(scene.tracks.size(), 0);
+  c.variable.assign(scene.tracks.size(), 0);
+  for (std::size_t i = 0; i < scene.images.size(); ++i) {
+    if (!layout.image_used[i] || setup.fix_poses || (setup.fixed_image && *setup.fixed_image == i)) continue;
+    for (int k = 0; k < 6; ++k) {
+      const bool fixed = setup.fixed_translation && setup.fixed_translation->first == i &&
+                         k == 3 + setup.fixed_translation->second;
+      if (!fixed) c.pose[i][static_cast<std::size_t>(k)] = c.f++;
+    }
+  }
+  if (bundle.refine_intrinsics != IntrinsicsRefinement::None) {
+    std::vector<char> constant(kIntrinsicCount, 0);
+    for (int k : constant_intrinsics(bundle.refine_intrinsics, scene.camera.distortion_count)) {
+      constant[static_cast<std::size_t>(k)] = 1;
+    }
+    for (int k = 0; k < kIntrinsicCount; ++k) {
+      if (!constant[static_cast<std::size_t>(k)]) c.intrinsics[static_cast<std::size_t>(k)] = c.f++;
+    }
+  }
+  for (std::size_t t = 0; t < scene.tracks.size(); ++t) {
+    if (!layout.in_ba[t]) continue;
+    const SceneTrack& track = scene.tracks[t];
+    if (track.at_control && !track.control_sigma_mm) continue;  // fixed
+    c.variable[t] = 1;
+    if (layout.in_bar[t]) {
+      for (int k = 0; k < 3; ++k) c.point[t][static_cast<std::size_t>(k)] = c.f++;
+    } else {
+      c.eliminated[t] = 1;
+      ++c.e_points;
+    }
+  }
+  return c;
+}
+
+// One observation's Jacobian split into its reduced-system columns (idx, Jf) and its point
+// columns (Jp, zero-size unless the point is variable).
+struct SplitJacobian {
+  std::vector<int> idx;
+  Eigen::Matrix<double, 2, Eigen::Dynamic> Jf;
+  Eigen::Matrix<double, 2, 3> Jp = Eigen::Matrix<double, 2, 3>::Zero();
+  Eigen::Vector2d r = Eigen::Vector2d::Zero();
+  bool ok = false;
+};
+
+SplitJacobian split(const Scene& scene, const Columns& c, bool with_intrinsics, std::size_t o, const BundleSetup& setup) {
+  SplitJacobian s;
+  const ObservationRef& ob = scene.observations[o];
+  const double inv_sigma = 1.0 / setup.sigma_of(ob);
+  Eigen::Matrix<double, 2, Eigen::Dynamic> J;
+  s.ok = with_intrinsics ? observation_jacobian<kFullJetSize>(scene, ob, inv_sigma, J, s.r)
+                         : observation_jacobian<kPoseJetSize>(scene, ob, inv_sigma, J, s.r);
+  if (!s.ok) return s;
+  std::vector<int> local;
+  for (int k = 0; k < 6; ++k) {
+    const int col = c.pose[ob.image][static_cast<std::size_t>(k)];
+    if (col >= 0) {
+      s.idx.push_back(col);
+      local.push_back(k);
+    }
+  }
+  for (int k = 0; k < 3; ++k) {
+    const int col = c.point[ob.track][static_cast<std::size_t>(k)];
+    if (col >= 0) {
+      s.idx.push_back(col);
+      local.push_back(6 + k);
+    }
+  }
+  if (with_intrinsics) {
+    for (int k = 0; k < kIntrinsicCount; ++k) {
+      const int col = c.intrinsics[static_cast<std::size_t>(k)];
+      if (col >= 0) {
+        s.idx.push_back(col);
+        local.push_back(9 + k);
+      }
+    }
+  }
+  s.Jf.resize(2, static_cast<Eigen::Index>(local.size()));
+  for (std::size_t k = 0; k < local.size(); ++k) s.Jf.col(static_cast<Eigen::Index>(k)) = J.col(local[k]);
+  if (c.eliminated[ob.track]) s.Jp = J.block<2, 3>(0, 6);
+  return s;
+}
+
+void scatter_add(Eigen::MatrixXd& S, const std::vector<int>& idx, const Eigen::MatrixXd& block) {
+  for (std::size_t a = 0; a < idx.size(); ++a) {
+    for (std::size_t b = 0; b < idx.size(); ++b) {
+      S(idx[a], idx[b]) += block(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b));
+    }
+  }
+}
+
+// The e-point's normal-equation blocks: V (3x3) and W stacked over its observations (rows idx).
+struct PointBlocks {
+  Eigen::Matrix3d V = Eigen::Matrix3d::Zero();
+  std::vector<int> idx;
+  Eigen::MatrixXd W;  // idx.size() x 3
+};
+
+}  // namespace
+
+const char* to_string(CovarianceMethod method) {
+  return method == CovarianceMethod::Full ? "full_covariance" : "per_point_fixed_poses";
+}
+
+PointUncertainty point_uncertainty(const Scene& scene, const BundleSetup& setup, const BundleOptions& bundle,
+                                   const CovarianceOptions& options) {
+  const AdjustmentLayout layout = adjustment_layout(scene, setup, options.threads);
+  const Columns cols = assign_columns(scene, setup, bundle, layout);
+  const bool with_intrinsics = bundle.refine_intrinsics != IntrinsicsRefinement::None;
+  PointUncertainty out;
+  out.sigma_mm.assign(scene.tracks.size(), std::numeric_limits<double>::quiet_NaN());
+  out.method = static_cast<std::size_t>(cols.f) <= options.max_reduced_parameters ? CovarianceMethod::Full
+                                                                                   : CovarianceMethod::PerPoint;
+  const bool full = out.method == CovarianceMethod::Full;
+
+  // Blocks of one e-point (also used for the second pass).
+  // With `U`, also adds each observation's J_f^T J_f to it.
+  auto point_blocks = [&](std::size_t t, double* sum_r2, std::size_t* residuals, Eigen::MatrixXd* U) {
+    PointBlocks pb;
+    std::vector<Eigen::MatrixXd> parts;
+    for (std::size_t o : layout.active[t]) {
+      const SplitJacobian s = split(scene, cols, with_intrinsics, o, setup);
+      if (!s.ok) continue;
+      if (sum_r2) *sum_r2 += s.r.squaredNorm();
+      if (residuals) *residuals += 2;
+      if (U) scatter_add(*U, s.idx, s.Jf.transpose() * s.Jf);
+      pb.V += s.Jp.transpose() * s.Jp;
+      pb.idx.insert(pb.idx.end(), s.idx.begin(), s.idx.end());
+      parts.push_back(s.Jf.transpose() * s.Jp);
+    }
+    const SceneTrack& track = scene.tracks[t];
+    if (track.at_control && track.control_sigma_mm) {
+      const double w = 1.0 / (*track.control_sigma_mm * *track.control_sigma_mm);
+      pb.V += w * Eigen::Matrix3d::Identity();
+      if (sum_r2) *sum_r2 += (track.xyz_mm - *track.control_mm).squaredNorm() * w;
+      if (residuals) *residuals += 3;
+    }
+    pb.W.resize(static_cast<Eigen::Index>(pb.idx.size()), 3);
+    Eigen::Index row = 0;
+    for (const auto& p : parts) {
+      pb.W.middleRows(row, p.rows()) = p;
+      row += p.rows();
+    }
+    return pb;
+  };
+
+  // Pass 1: S = U - sum_i W_i V_i^-1 W_i^T, the residual sum and count.
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(full ? cols.f : 0, full ? cols.f : 0);
+  double sum_r2 = 0;
+  std::size_t residuals = 0;
+  std::vector<Eigen::Matrix3d> Vinv(scene.tracks.size(), Eigen::Matrix3d::Zero());
+  for (std::size_t t = 0; t < scene.tracks.size(); ++t) {
+    if (!layout.in_ba[t]) continue;
+    if (cols.eliminated[t]) {
+      const PointBlocks pb = point_blocks(t, &sum_r2, &residuals, full ? &S : nullptr);
+      Vinv[t] = pb.V.inverse();
+      if (full) scatter_add(S, pb.idx, -(pb.W * Vinv[t] * pb.W.transpose()));
+      continue;
+    }
+    // Fixed control points and scale-bar points: everything goes to U.
+    for (std::size_t o : layout.active[t]) {
+      const SplitJacobian s = split(scene, cols, with_intrinsics, o, setup);
+      if (!s.ok) continue;
+      sum_r2 += s.r.squaredNorm();
+      residuals += 2;
+      if (full) scatter_add(S, s.idx, s.Jf.transpose() * s.Jf);
+    }
+    const SceneTrack& track = scene.tracks[t];
+    if (track.at_control && track.control_sigma_mm) {
+      const double w = 1.0 / (*track.control_sigma_mm * *track.control_sigma_mm);
+      sum_r2 += (track.xyz_mm - *track.control_mm).squaredNorm() * w;
+      residuals += 3;
+      if (full && cols.point[t][0] >= 0) {
+        for (int k = 0; k < 3; ++k) S(cols.point[t][static_cast<std::size_t>(k)], cols.point[t][static_cast<std::size_t>(k)]) += w;
+      }
+    }
+  }
+  for (const ScaleConstraint* b : layout.bars) {
+    const Eigen::Vector3d d = scene.tracks[b->track_a].xyz_mm - scene.tracks[b->track_b].xyz_mm;
+    const double r = (d.norm() - b->distance_mm) / b->sigma_mm;
+    sum_r2 += r * r;
+    residuals += 1;
+    if (!full) continue;
+    const Eigen::Vector3d g = d.normalized() / b->sigma_mm;  // dr/dA = g^T, dr/dB = -g^T
+    std::vector<int> idx;
+    std::vector<double> values;
+    for (int end = 0; end < 2; ++end) {
+      const std::size_t t = end == 0 ? b->track_a : b->track_b;
+      for (int k = 0; k < 3; ++k) {
+        const int col = cols.point[t][static_cast<std::size_t>(k)];
+        if (col < 0) continue;
+        idx.push_back(col);
+        values.push_back(end == 0 ? g[k] : -g[k]);
+      }
+    }
+    const Eigen::VectorXd j = Eigen::Map<Eigen::VectorXd>(values.data(), static_cast<Eigen::Index>(values.size()));
+    scatter_add(S, idx, j * j.transpose());
+  }
+
+  const std::size_t unknowns = static_cast<std::size_t>(cols.f) + 3 * cols.e_points;
+  if (residuals > unknowns) {
+    out.redundancy = residuals - unknowns;
+    out.variance_factor = sum_r2 / static_cast<double>(out.redundancy);
+  }
+
+  Eigen::MatrixXd sigma_f;
+  if (full && cols.f > 0) {
+    const Eigen::LLT<Eigen::MatrixXd> llt(S);
+    if (llt.info() == Eigen::Success) {
+      sigma_f = llt.solve(Eigen::MatrixXd::Identity(cols.f, cols.f));
+      if (!sigma_f.allFinite()) out.method = CovarianceMethod::PerPoint;
+    } else {
+      out.method = CovarianceMethod::PerPoint;  // the gauge is not fixed: no full covariance
+    }
+  }
+
+  // Pass 2: per-point marginal covariances.
+  const double s0 = out.variance_factor;
+  parallel_for(scene.tracks.size(), options.threads, [&](std::size_t begin, std::size_t end) {
+    for (std::size_t t = begin; t < end; ++t) {
+      if (!layout.in_ba[t]) continue;
+      if (!cols.variable[t]) {
+        out.sigma_mm[t] = 0;  // a fixed control point
+        continue;
+      }
+      Eigen::Matrix3d cov;
+      if (cols.eliminated[t]) {
+        cov = Vinv[t];
+        if (out.method == CovarianceMethod::Full && cols.f > 0) {
+          const PointBlocks pb = point_blocks(t, nullptr, nullptr, nullptr);
+          const auto n = static_cast<Eigen::Index>(pb.idx.size());
+          Eigen::MatrixXd sub(n, n);
+          for (Eigen::Index a = 0; a < n; ++a) {
+            for (Eigen::Index b = 0; b < n; ++b) sub(a, b) = sigma_f(pb.idx[static_cast<std::size_t>(a)], pb.idx[static_cast<std::size_t>(b)]);
+          }
+          cov += Vinv[t] * (pb.W.transpose() * sub * pb.W) * Vinv[t];
+        }
+      } else if (out.method == CovarianceMethod::Full) {
+        for (int a = 0; a < 3; ++a) {
+          for (int b = 0; b < 3; ++b) {
+            cov(a, b) = sigma_f(cols.point[t][static_cast<std::size_t>(a)], cols.point[t][static_cast<std::size_t>(b)]);
+          }
+        }
+      } else {
+        // Per-point method for a scale-bar point: its own normal block with poses fixed.
+        Eigen::Matrix3d V = Eigen::Matrix3d::Zero();
+        for (std::size_t o : layout.active[t]) {
+          Eigen::Matrix<double, 2, Eigen::Dynamic> J;
+          Eigen::Vector2d r;
+          const ObservationRef& ob = scene.observations[o];
+          if (observation_jacobian<kPoseJetSize>(scene, ob, 1.0 / setup.sigma_of(ob), J, r)) {
+            V += J.block<2, 3>(0, 6).transpose() * J.block<2, 3>(0, 6);
+          }
+        }
+        const SceneTrack& track = scene.tracks[t];
+        if (track.at_control && track.control_sigma_mm) V += Eigen::Matrix3d::Identity() / (*track.control_sigma_mm * *track.control_sigma_mm);
+        cov = V.inverse();
+      }
+      out.sigma_mm[t] = std::sqrt(std::max(0.0, s0 * cov.trace() / 3));
+    }
+  });
+  return out;
+}
+
+}  // namespace photomill::triangulate

@@ -1,0 +1,120 @@
+// triangulate's one library call: from tracks, the camera and the datum (control points, scale
+// bars, a marker side) to camera poses, 3D points with their uncertainty, and a report.
+//   1. poses: PnP from control points in every image that sees enough of them; otherwise
+//      incremental: the best image pair from the essential matrix, further images by PnP;
+//   2. multi-view triangulation of every track (triangulation.hpp);
+//   3. bundle adjustment with the datum inside it, outlier removal and re-solving (bundle.hpp);
+//   4. point uncertainty from the adjustment (covariance.hpp).
+// Throws GeometryError with an explanation for degenerate input, UsageError when no datum for
+// the scale was given.
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "formats/camera.hpp"
+#include "formats/point_cloud.hpp"
+#include "formats/tables.hpp"
+#include "triangulate/bundle.hpp"
+#include "triangulate/covariance.hpp"
+#include "triangulate/pose.hpp"
+#include "triangulate/report.hpp"
+#include "triangulate/scene.hpp"
+#include "triangulate/triangulation.hpp"
+
+namespace photomill::triangulate {
+
+struct ScaleOptions {
+  // Side length of the square markers (black border included); adds a scale bar along each side
+  // of every marker in marker_ids whose corner tracks (id = marker_id * 4 + corner) exist.
+  std::optional<double> marker_side_mm;
+  double marker_side_sigma_mm = 0.01;
+  // Inclusive ranges of marker ids the side applies to (default: 0..1023, every id of the
+  // largest ArUco dictionary; natural-feature track ids lie above 4095).
+  std::vector<std::pair<std::int64_t, std::int64_t>> marker_ids = {{0, 1023}};
+  // Marker sides whose length (after a first scaling) differs from the median by more than this
+  // fraction are left out: markers of another size, or draped over a curved part.
+  double marker_side_tolerance = 0.05;
+  // Sigma of scale bars whose file gives none.
+  double default_bar_sigma_mm = 0.01;
+  // Without control points, scale bars or a marker side: refuse (false) or go on with the
+  // arbitrary scale of the first image pair (true).
+  bool allow_arbitrary_scale = false;
+};
+
+struct OutlierOptions {
+  // An observation is removed when its reprojection error exceeds
+  //   clamp(sigmas * sigma_hat, min_px, max_px),
+  // sigma_hat the robust noise estimate of its class in the current adjustment; then the
+  // problem is solved again, at most `rounds` times.
+  double sigmas = 6;
+  double min_px = 0.05;
+  double max_px = 2;
+  int rounds = 4;
+  // An image left with fewer inlier observations loses its pose.
+  std::size_t min_image_observations = 6;
+};
+
+struct ReconstructOptions {
+  TriangulationOptions triangulation;
+  BundleOptions bundle;
+  RansacOptions ransac;
+  CovarianceOptions covariance;
+  ScaleOptions scale;
+  OutlierOptions outliers;
+  // Standard deviation of an image measurement, pixels; nullopt: estimated from the residuals
+  // (robustly, from their median) and updated after each adjustment, separately for coded
+  // targets and natural features (scene.hpp's ObservationClass).
+  std::optional<double> observation_sigma_px;
+  // Tracks with an id below this are coded targets (ArUco marker corners marker_id * 4 + corner
+  // of the largest dictionary, board corners), the others natural features.
+  TrackId coded_id_limit = 4096;
+  // PnP from control points needs this many of them visible in the image (not on a line).
+  std::size_t control_min_points = 4;
+  // PnP against triangulated points needs this many inliers.
+  std::size_t pnp_min_inliers = 8;
+  // Incremental start: candidate pairs share this many tracks or more; the best
+  // initial_pair_candidates of them (by shared tracks) are tried; the chosen pair's median
+  // intersection angle must reach initial_min_angle_deg.
+  std::size_t min_shared_tracks = 8;
+  std::size_t initial_pair_candidates = 40;
+  double initial_min_angle_deg = 3;
+  // Points count as collinear when the second singular value of their centred coordinates is
+  // below this fraction of the first.
+  double collinear_tolerance = 1e-3;
+  // While images are being added, adjust everything each time the number of registered images
+  // has grown by this factor.
+  double global_ba_growth = 1.25;
+  int threads = 0;  // 0: all hardware threads
+};
+
+struct ReconstructInput {
+  std::vector<TrackObservation> tracks;
+  std::string tracks_source = "<tracks>";
+  Camera camera;
+  std::string camera_source = "<camera>";
+  std::vector<ControlPoint> control_points;
+  std::vector<ScaleBar> scale_bars;
+};
+
+struct Reconstruction {
+  Scene scene;                     // final poses, points, inlier flags
+  Camera camera;                   // as given, or refined by self-calibration
+  std::vector<double> sigma_mm;    // per track (see covariance.hpp); NaN outside the result
+  std::vector<char> in_result;     // per track: part of the output cloud
+  BundleSetup setup;               // datum, gauge and sigmas of the final adjustment
+  Report report;
+};
+
+Reconstruction reconstruct(const ReconstructInput& input, const ReconstructOptions& options);
+
+// The output cloud: one vertex per reconstructed track with track_id, views, reproj_rms_px,
+// sigma_mm and control (1 for control points).
+PointCloud make_point_cloud(const Reconstruction& r);
+// Poses of the registered images, in input order.
+std::vector<Pose> registered_poses(const Reconstruction& r);
+
+}  // namespace photomill::triangulate

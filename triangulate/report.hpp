@@ -1,0 +1,96 @@
+// What triangulate did, for people (stderr summary) and for tools (--report FILE, JSON).
+// JSON keys are documented in docs/triangulate.md.
+#pragma once
+
+#include <cstddef>
+#include <map>
+#include <optional>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "formats/tables.hpp"
+
+namespace photomill::triangulate {
+
+struct ImageReport {
+  std::string image;
+  bool registered = false;
+  std::string registered_by;        // "control_pnp", "initial_pair", "pnp"; empty if not registered
+  std::size_t observations = 0;     // inlier observations in the final adjustment
+  double rms_px = 0;                // RMS reprojection error over them
+};
+
+struct ScaleBarReport {
+  PointId point_a = 0;
+  PointId point_b = 0;
+  std::string origin;               // "file" or "marker_side"
+  double distance_mm = 0;           // given
+  double sigma_mm = 0;              // used as its standard deviation
+  bool used = false;                // both ends reconstructed
+  double measured_mm = 0;           // |A - B| after the adjustment (when used)
+};
+
+struct ControlReport {
+  PointId point_id = 0;
+  bool fixed = false;               // held fixed (no sigma) or weighted by sigma_mm
+  double sigma_mm = 0;
+  double residual_mm = 0;           // |X_adjusted - X_control| (0 when fixed)
+  std::size_t observations = 0;
+};
+
+struct RemovedObservation {
+  TrackId track_id = 0;
+  std::string image;
+  double residual_px = 0;           // reprojection error when it was removed
+  int round = 0;                    // final outlier round (1-based); -1: while building the model
+};
+
+// One class of observations (scene.hpp's ObservationClass).
+struct ClassReport {
+  std::size_t observations = 0;     // inliers in the final adjustment
+  double sigma_px = 0;              // its sigma per coordinate (estimated or given)
+};
+
+struct Report {
+  // Datum: "control_points", "scale_bars", "marker_side", "scale_bars+marker_side",
+  // "arbitrary_scale".
+  std::string datum;
+  std::string pose_initialisation;  // "control_pnp", "incremental", "incremental+control_alignment"
+  std::optional<std::string> reference_image;  // pose held fixed (datum without control points)
+  std::size_t images = 0;
+  std::size_t registered_images = 0;
+  std::size_t tracks = 0;
+  std::size_t points = 0;           // in the output cloud
+  std::size_t observations_used = 0;
+  std::map<std::string, ClassReport> observation_classes;  // "coded", "natural"
+  bool observation_sigma_estimated = false;
+  double initial_rms_px = 0;        // before the final adjustment
+  double final_rms_px = 0;          // sqrt(mean |r|^2) over the inlier observations
+  int adjustments = 0;              // bundle adjustments run
+  int final_iterations = 0;         // Ceres iterations of the last adjustment
+  double adjustment_seconds = 0;    // time in all bundle adjustments
+  double total_seconds = 0;
+  std::string solver;
+  std::string loss;
+  double loss_scale_px = 0;
+  std::string refine_intrinsics;
+  int threads = 0;
+  std::string sigma_method;         // "full_covariance" or "per_point_fixed_poses"
+  double variance_factor = 1;
+  std::vector<ImageReport> per_image;
+  std::vector<RemovedObservation> removed;
+  std::map<std::string, std::size_t> tracks_dropped;   // by reason
+  std::vector<ScaleBarReport> scale_bars;
+  std::vector<ControlReport> control_points;
+  std::vector<std::string> warnings;
+  // Intrinsics after self-calibration (when refined): fx fy cx cy and distortion, OpenCV order.
+  std::vector<double> refined_camera;
+};
+
+void write_report_json(std::ostream& out, const Report& report);
+// The summary on stderr (photomill::log): a few lines at normal verbosity, per-image figures
+// and removed observations with -v.
+void log_report(const Report& report);
+
+}  // namespace photomill::triangulate

@@ -1,0 +1,112 @@
+// Ceres residuals of triangulate's adjustments, each with its formula and parameter layout.
+// Ceres' cost functions are handed over by raw pointer: the Problem takes ownership.
+// Every residual is whitened (divided by its standard deviation), so reprojection errors,
+// control-point priors and scale bars add up to one chi-square-like cost (Triggs et al.,
+// "Bundle adjustment - a modern synthesis", 2000, sec. 3-4; Ceres examples/bundle_adjuster.cc).
+#pragma once
+
+#include <ceres/ceres.h>
+
+#include "triangulate/camera_model.hpp"
+
+namespace photomill::triangulate {
+
+// Reprojection error with the intrinsics held fixed (stored in the functor).
+//   r = (pi(K, d; R(aa) X + t) - u) / sigma_px                               (2 values)
+// Parameters: pose[0..2] = angle-axis (rad), pose[3..5] = t (mm), cam_from_world;
+//             point[0..2] = X (mm, world).
+// pi is camera_model.hpp's project() (the paper's x_cam = R X + T, section 3.2, then OpenCV's
+// distortion). A point behind the camera makes the evaluation fail (Ceres rejects the step).
+struct ReprojectionError {
+  ReprojectionError(const CameraModel* camera, const Eigen::Vector2d& uv_px, double sigma_px)
+      : camera(camera), shape(shape_of(*camera)), u(uv_px.x()), v(uv_px.y()), inv_sigma(1.0 / sigma_px) {}
+
+  template <typename T>
+  bool operator()(const T* pose, const T* point, T* r) const {
+    T uv[2];
+    if (!project(shape, camera->params.data(), pose, point, uv)) return false;
+    r[0] = (uv[0] - u) * inv_sigma;
+    r[1] = (uv[1] - v) * inv_sigma;
+    return true;
+  }
+
+  static ceres::CostFunction* create(const CameraModel* camera, const Eigen::Vector2d& uv_px, double sigma_px) {
+    return new ceres::AutoDiffCostFunction<ReprojectionError, 2, 6, 3>(
+        new ReprojectionError(camera, uv_px, sigma_px));
+  }
+
+  const CameraModel* camera;
+  ModelShape shape;
+  double u, v, inv_sigma;
+};
+
+// Reprojection error with the intrinsics as a parameter block (self-calibration).
+//   r = (pi(k; R(aa) X + t) - u) / sigma_px                                  (2 values)
+// Parameters: pose[0..5] and point[0..2] as above; intrinsics[0..15] in camera_model.hpp's
+// IntrinsicIndex layout (fx fy cx cy k1 k2 p1 p2 k3 k4 k5 k6 s1 s2 s3 s4); the skew is fixed.
+struct ReprojectionErrorWithIntrinsics {
+  ReprojectionErrorWithIntrinsics(const ModelShape& shape, const Eigen::Vector2d& uv_px, double sigma_px)
+      : shape(shape), u(uv_px.x()), v(uv_px.y()), inv_sigma(1.0 / sigma_px) {}
+
+  template <typename T>
+  bool operator()(const T* pose, const T* point, const T* intrinsics, T* r) const {
+    T uv[2];
+    if (!project(shape, intrinsics, pose, point, uv)) return false;
+    r[0] = (uv[0] - u) * inv_sigma;
+    r[1] = (uv[1] - v) * inv_sigma;
+    return true;
+  }
+
+  static ceres::CostFunction* create(const ModelShape& shape, const Eigen::Vector2d& uv_px, double sigma_px) {
+    return new ceres::AutoDiffCostFunction<ReprojectionErrorWithIntrinsics, 2, 6, 3, kIntrinsicCount>(
+        new ReprojectionErrorWithIntrinsics(shape, uv_px, sigma_px));
+  }
+
+  ModelShape shape;
+  double u, v, inv_sigma;
+};
+
+// Prior on a control point with known coordinates X0 and standard deviation sigma per axis:
+//   r = (X - X0) / sigma_mm                                                   (3 values)
+// Parameters: point[0..2] = X (mm, world).
+struct ControlPointPrior {
+  ControlPointPrior(const Eigen::Vector3d& known_mm, double sigma_mm) : known(known_mm), inv_sigma(1.0 / sigma_mm) {}
+
+  template <typename T>
+  bool operator()(const T* point, T* r) const {
+    for (int i = 0; i < 3; ++i) r[i] = (point[i] - known[i]) * inv_sigma;
+    return true;
+  }
+
+  static ceres::CostFunction* create(const Eigen::Vector3d& known_mm, double sigma_mm) {
+    return new ceres::AutoDiffCostFunction<ControlPointPrior, 3, 3>(new ControlPointPrior(known_mm, sigma_mm));
+  }
+
+  Eigen::Vector3d known;
+  double inv_sigma;
+};
+
+// Scale bar: a known distance d (standard deviation sigma) between two points A and B:
+//   r = (|A - B| - d) / sigma_mm                                              (1 value)
+// Parameters: a[0..2] = A, b[0..2] = B (mm, world). This is the datum of a reconstruction
+// without control points: the adjustment itself fixes the scale, rather than a rescale afterwards.
+struct ScaleBarError {
+  ScaleBarError(double distance_mm, double sigma_mm) : distance(distance_mm), inv_sigma(1.0 / sigma_mm) {}
+
+  template <typename T>
+  bool operator()(const T* a, const T* b, T* r) const {
+    const T dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
+    const T squared = dx * dx + dy * dy + dz * dz;
+    if (!(squared > T(0.0))) return false;  // coincident points: the distance is not differentiable
+    r[0] = (ceres::sqrt(squared) - distance) * inv_sigma;
+    return true;
+  }
+
+  static ceres::CostFunction* create(double distance_mm, double sigma_mm) {
+    return new ceres::AutoDiffCostFunction<ScaleBarError, 1, 3, 3>(new ScaleBarError(distance_mm, sigma_mm));
+  }
+
+  double distance, inv_sigma;
+};
+
+}  // namespace photomill::triangulate

@@ -1,0 +1,118 @@
+// The reconstruction state (see scene.hpp).
+#include "triangulate/scene.hpp"
+
+#include <unordered_map>
+
+#include <ceres/rotation.h>
+#include <Eigen/Geometry>
+
+namespace photomill::triangulate {
+
+const char* to_string(TrackIssue issue) {
+  switch (issue) {
+    case TrackIssue::None: return "none";
+    case TrackIssue::SeenOnce: return "seen_once";
+    case TrackIssue::NotRegistered: return "images_not_registered";
+    case TrackIssue::SmallAngle: return "small_angle";
+    case TrackIssue::BehindCamera: return "behind_camera";
+    case TrackIssue::LargeError: return "large_error";
+    case TrackIssue::TooFewInliers: return "too_few_inliers";
+  }
+  return "unknown";
+}
+
+std::optional<std::size_t> Scene::find_track(TrackId id) const {
+  const auto it = track_by_id.find(id);
+  if (it == track_by_id.end()) return std::nullopt;
+  return it->second;
+}
+
+std::vector<std::size_t> Scene::active_observations(std::size_t track) const {
+  std::vector<std::size_t> out;
+  for (std::size_t o : tracks[track].observations) {
+    const ObservationRef& ob = observations[o];
+    if (ob.usable && ob.inlier && images[ob.image].registered) out.push_back(o);
+  }
+  return out;
+}
+
+std::size_t Scene::registered_count() const {
+  std::size_t n = 0;
+  for (const auto& im : images) n += im.registered ? 1 : 0;
+  return n;
+}
+
+const char* to_string(ObservationClass c) { return c == ObservationClass::Coded ? "coded" : "natural"; }
+
+Scene build_scene(const std::vector<TrackObservation>& tracks, const CameraModel& camera,
+                  const std::vector<ControlPoint>& control_points, TrackId coded_id_limit) {
+  Scene s;
+  s.camera = camera;
+  std::unordered_map<std::string, std::size_t> image_index;
+  std::unordered_map<TrackId, std::size_t>& track_index = s.track_by_id;
+  s.observations.reserve(tracks.size());
+  for (const TrackObservation& t : tracks) {
+    auto [im, new_image] = image_index.try_emplace(t.image, s.images.size());
+    if (new_image) s.images.push_back({t.image, {}, false, {}});
+    auto [tr, new_track] = track_index.try_emplace(t.track_id, s.tracks.size());
+    if (new_track) {
+      SceneTrack track;
+      track.id = t.track_id;
+      s.tracks.push_back(track);
+    }
+    ObservationRef ob;
+    ob.image = im->second;
+    ob.track = tr->second;
+    ob.uv_px = Eigen::Vector2d(t.u_px, t.v_px);
+    const auto xy = undistort(camera, ob.uv_px);
+    ob.usable = xy.has_value();
+    ob.xy = xy.value_or(Eigen::Vector2d::Zero());
+    const std::size_t index = s.observations.size();
+    s.observations.push_back(ob);
+    s.images[ob.image].observations.push_back(index);
+    s.tracks[ob.track].observations.push_back(index);
+  }
+  for (const ControlPoint& c : control_points) {
+    const auto it = track_index.find(c.point_id);
+    if (it == track_index.end()) continue;
+    s.tracks[it->second].control_mm = c.xyz_mm;
+    s.tracks[it->second].control_sigma_mm = c.sigma_mm;
+  }
+  for (ObservationRef& ob : s.observations) {
+    const SceneTrack& t = s.tracks[ob.track];
+    ob.cls = t.id < coded_id_limit || t.control_mm ? ObservationClass::Coded : ObservationClass::Natural;
+  }
+  return s;
+}
+
+Eigen::Matrix3d rotation_of(const PoseBlock& pose) {
+  Eigen::Matrix3d R;
+  ceres::AngleAxisToRotationMatrix(pose.data(), ceres::ColumnMajorAdapter3x3(R.data()));
+  return R;
+}
+
+Eigen::Vector3d translation_of(const PoseBlock& pose) { return {pose[3], pose[4], pose[5]}; }
+
+Eigen::Vector3d centre_of(const PoseBlock& pose) { return -rotation_of(pose).transpose() * translation_of(pose); }
+
+PoseBlock make_pose(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
+  PoseBlock p{};
+  ceres::RotationMatrixToAngleAxis(ceres::ColumnMajorAdapter3x3(R.data()), p.data());
+  p[3] = t.x();
+  p[4] = t.y();
+  p[5] = t.z();
+  return p;
+}
+
+Pose to_pose(const std::string& image, const PoseBlock& pose) {
+  Pose p;
+  p.image = image;
+  Eigen::Quaterniond q(rotation_of(pose));
+  q.normalize();
+  if (q.w() < 0) q.coeffs() *= -1;
+  p.cam_from_world_rotation = q;
+  p.cam_from_world_translation_mm = translation_of(pose);
+  return p;
+}
+
+}  // namespace photomill::triangulate

@@ -1,0 +1,111 @@
+// The reconstruction state shared by triangulate's steps: images with their poses, tracks with
+// their 3D points, and every observation linking the two (indices, not ids, for speed).
+// Built once from the input tables; poses and points are filled in as the steps proceed.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "formats/tables.hpp"
+#include "triangulate/camera_model.hpp"
+
+namespace photomill::triangulate {
+
+// Classes of observations with their own noise level, estimated separately (variance components):
+// coded targets (marker and board corners, control points), measured to a few hundredths of a
+// pixel, and natural features, measured to a few tenths.
+enum class ObservationClass { Coded = 0, Natural = 1 };
+constexpr std::size_t kObservationClasses = 2;
+const char* to_string(ObservationClass c);
+
+// One image measurement of one track.
+struct ObservationRef {
+  std::size_t image = 0;          // index into Scene::images
+  std::size_t track = 0;          // index into Scene::tracks
+  Eigen::Vector2d uv_px;          // measured pixel, OpenCV convention
+  Eigen::Vector2d xy;             // undistorted normalised coordinates (x/z, y/z) of uv_px
+  ObservationClass cls = ObservationClass::Natural;
+  bool usable = true;             // false if the distortion could not be inverted at uv_px
+  bool inlier = true;             // false once removed as an outlier
+  // When removed: -1 while triangulating or growing the model, k >= 1 in the final adjustment's
+  // outlier round k; and its reprojection error then, pixels.
+  int removed_round = 0;
+  double removed_residual_px = 0;
+};
+
+// Pose parameter block: cam_from_world as [angle-axis (rad) 0..2, t (mm) 3..5];
+// x_cam = R(aa) X + t.
+using PoseBlock = std::array<double, 6>;
+
+struct SceneImage {
+  std::string name;
+  std::vector<std::size_t> observations;  // indices into Scene::observations
+  bool registered = false;
+  PoseBlock cam_from_world{};             // valid when registered
+};
+
+enum class TrackState {
+  Pending,        // not (yet) triangulated
+  Triangulated,   // xyz_mm estimated from its observations
+  Rejected,       // given up for good (issue says why)
+};
+
+// Why a track is not (or no longer) in the reconstruction; the last reason found is kept.
+enum class TrackIssue {
+  None,
+  SeenOnce,          // observed in fewer than two images
+  NotRegistered,     // fewer than two of its images got a pose
+  SmallAngle,        // its rays meet at less than the minimum triangulation angle
+  BehindCamera,      // the intersection lies behind a camera that sees it
+  LargeError,        // its reprojection error stays above the limit
+  TooFewInliers,     // fewer than two observations left after outlier removal
+};
+const char* to_string(TrackIssue issue);
+
+struct SceneTrack {
+  TrackId id = 0;
+  std::vector<std::size_t> observations;  // indices into Scene::observations
+  TrackState state = TrackState::Pending;
+  TrackIssue issue = TrackIssue::None;
+  Eigen::Vector3d xyz_mm = Eigen::Vector3d::Zero();  // world (or model) frame, mm
+  // Control point: its known world coordinates and, if given, their sigma (else held fixed).
+  std::optional<Eigen::Vector3d> control_mm;
+  std::optional<double> control_sigma_mm;
+  // True once xyz_mm is in the world frame of the control points (set to the control value).
+  bool at_control = false;
+};
+
+struct Scene {
+  CameraModel camera;
+  std::vector<SceneImage> images;         // in order of first appearance in the tracks
+  std::vector<SceneTrack> tracks;         // in order of first appearance
+  std::vector<ObservationRef> observations;
+  std::unordered_map<TrackId, std::size_t> track_by_id;  // id -> index into tracks
+
+  // Index of a track by id, or nullopt.
+  std::optional<std::size_t> find_track(TrackId id) const;
+  // Observations of a track in registered images that are usable inliers.
+  std::vector<std::size_t> active_observations(std::size_t track) const;
+  std::size_t registered_count() const;
+};
+
+// Builds the scene: indexes tracks and images, undistorts every observation and attaches control
+// points to the tracks of the same id. Control points that no track observes are ignored.
+// Observations of tracks with an id below `coded_id_limit`, and of control points, are Coded.
+Scene build_scene(const std::vector<TrackObservation>& tracks, const CameraModel& camera,
+                  const std::vector<ControlPoint>& control_points, TrackId coded_id_limit = 4096);
+
+// Pose helpers.
+Eigen::Matrix3d rotation_of(const PoseBlock& pose);
+Eigen::Vector3d translation_of(const PoseBlock& pose);
+Eigen::Vector3d centre_of(const PoseBlock& pose);     // C = -R^T t
+PoseBlock make_pose(const Eigen::Matrix3d& R, const Eigen::Vector3d& t);
+Pose to_pose(const std::string& image, const PoseBlock& pose);
+
+}  // namespace photomill::triangulate
