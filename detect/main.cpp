@@ -1,6 +1,6 @@
 // detect: images -> observations CSV (image,point_id,u_px,v_px) of calibration-board corners, or
-// with --print-board the board's control points CSV. One mode per run; more modes (ArUco markers,
-// natural features) plug in beside the board mode. Per-image results go to stderr.
+// with --print-board the board's control points CSV; or ArUco marker corners and/or SIFT feature
+// files (options and run in photo_cli.hpp). One mode per run. Per-image results go to stderr.
 #include <string>
 #include <vector>
 
@@ -54,7 +54,7 @@ int main(int argc, char** argv) {
   detect::PhotoCli photo;  // --aruco, --aruco-dict-file, --features (detect/photo_cli.hpp)
   return tool::run(
       argc, argv,
-      {"detect", "find calibration-board corners in images; write observations CSV",
+      {"detect", "find board corners, ArUco markers or SIFT features in images; write observations CSV",
        "detect --chessboard 9x6 left*.jpg | calib --chessboard 9x6 --square-mm 25 > cam.yaml"},
       [&](CLI::App& app) {
         app.add_option("images", images, "Images; '-' reads image paths from stdin, one per line");

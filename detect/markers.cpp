@@ -23,19 +23,95 @@ constexpr double kMinSigmaPx = 0.05;
 double normal_pdf(double z) { return kInvSqrt2Pi * std::exp(-0.5 * z * z); }
 double normal_cdf(double z) { return 0.5 * std::erfc(-z * kInvSqrt2); }
 
-// The pixel-integrated blurred step R(x; sigma) and its derivatives (formula in markers.hpp):
-//   dR/dx = Phi((x + 1/2)/sigma) - Phi((x - 1/2)/sigma)
-//   dR/dsigma = phi((x + 1/2)/sigma) - phi((x - 1/2)/sigma)   (since dG/dsigma = phi(x/sigma)).
+// Phi and phi by cubic Hermite interpolation in a table over [-8.5, 8.5] (step 1/64), using the
+// known derivatives (Phi' = phi, phi' = -z phi): error below 1e-9, a sixth of libm's cost (the
+// edge fit evaluates them tens of millions of times per photo set). Outside, Phi is 0 or 1.
+class NormalTable {
+public:
+  NormalTable() {
+    for (int k = 0; k < kSize; ++k) {
+      const double z = kLow + k * kStep;
+      cdf_[k] = normal_cdf(z);
+      pdf_[k] = normal_pdf(z);
+    }
+  }
+  // Phi(z) and phi(z).
+  void operator()(double z, double& cdf, double& pdf) const {
+    const double u = (z - kLow) / kStep;
+    if (!(u >= 0)) {
+      cdf = pdf = 0;
+      return;
+    }
+    const int k = static_cast<int>(u);
+    if (k >= kSize - 1) {
+      cdf = 1;
+      pdf = 0;
+      return;
+    }
+    const double t = u - k, t2 = t * t, t3 = t2 * t;
+    const double h00 = 2 * t3 - 3 * t2 + 1, h10 = t3 - 2 * t2 + t, h01 = -2 * t3 + 3 * t2, h11 = t3 - t2;
+    const double z0 = kLow + k * kStep, z1 = z0 + kStep;
+    cdf = h00 * cdf_[k] + h10 * kStep * pdf_[k] + h01 * cdf_[k + 1] + h11 * kStep * pdf_[k + 1];
+    pdf = h00 * pdf_[k] - h10 * kStep * z0 * pdf_[k] + h01 * pdf_[k + 1] - h11 * kStep * z1 * pdf_[k + 1];
+  }
+
+private:
+  static constexpr double kLow = -8.5, kStep = 1.0 / 64;
+  static constexpr int kSize = 17 * 64 + 2;
+  std::array<double, kSize> cdf_{}, pdf_{};
+};
+
+const NormalTable& normal_table() {
+  static const NormalTable table;
+  return table;
+}
+
+// The pixel-integrated blurred step R(x; sigma) and its derivatives. A unit pixel square seen
+// across an edge of unit normal n is the convolution of two boxes of widths a = |n_x| and
+// b = |n_y| (a trapezoid); with the Gaussian PSF and the step, integrated twice:
+//   G0(x) = Phi(x/s),  G1(x) = x Phi(x/s) + s phi(x/s),  G2(x) = (x^2 + s^2)/2 Phi(x/s) + x s/2 phi(x/s)
+//   R(x) = [G2(x + h1) - G2(x + h2) - G2(x - h2) + G2(x - h1)] / (a b),  h1 = (a + b)/2, h2 = (a - b)/2
+//   dR/dx = the same second difference of G1 / (a b),  dR/ds = s (the same of G0) / (a b)
+// (dG2/ds = s Phi(x/s)). For an edge along a pixel axis (b -> 0) the trapezoid is the unit box:
+//   R(x) = G1(x + 1/2) - G1(x - 1/2),  dR/dx = G0(x + 1/2) - G0(x - 1/2),  dR/ds = phi(..) - phi(..).
 struct Response {
   double r, dr_dx, dr_dsigma;
 };
-Response edge_response(double x, double sigma) {
-  const double zp = (x + 0.5) / sigma, zm = (x - 0.5) / sigma;
+struct Footprint {
+  double a = 1, b = 0;  // |n_x|, |n_y| ordered so that a >= b
+  static Footprint across(const Eigen::Vector2d& n) {
+    const double x = std::abs(n.x()), y = std::abs(n.y());
+    return {std::max(x, y), std::min(x, y)};
+  }
+};
+constexpr double kMinTrapezoid = 0.05;  // below this b the unit box is exact to ~1e-4 px
+
+Response edge_response(double x, double sigma, const Footprint& fp) {
+  const double h1 = fp.b < kMinTrapezoid ? 0.5 : 0.5 * (fp.a + fp.b);
   // Beyond 8.5 sigma Phi is 0 or 1 to 1e-17: the pixel is plain white or black.
-  if (zm > 8.5) return {1, 0, 0};
-  if (zp < -8.5) return {0, 0, 0};
-  const double cp = normal_cdf(zp), cm = normal_cdf(zm), pp = normal_pdf(zp), pm = normal_pdf(zm);
-  return {(x + 0.5) * cp + sigma * pp - (x - 0.5) * cm - sigma * pm, cp - cm, pp - pm};
+  if ((x - h1) / sigma > 8.5) return {1, 0, 0};
+  if ((x + h1) / sigma < -8.5) return {0, 0, 0};
+  const NormalTable& normal = normal_table();
+  if (fp.b < kMinTrapezoid) {
+    double cp, cm, pp, pm;
+    normal((x + 0.5) / sigma, cp, pp);
+    normal((x - 0.5) / sigma, cm, pm);
+    return {(x + 0.5) * cp + sigma * pp - (x - 0.5) * cm - sigma * pm, cp - cm, pp - pm};
+  }
+  const double h2 = 0.5 * (fp.a - fp.b);
+  const double offsets[4] = {h1, h2, -h2, -h1};
+  const double signs[4] = {1, -1, -1, 1};
+  double g0 = 0, g1 = 0, g2 = 0;
+  for (int k = 0; k < 4; ++k) {
+    const double u = x + offsets[k];
+    double cdf, pdf;
+    normal(u / sigma, cdf, pdf);
+    g0 += signs[k] * cdf;
+    g1 += signs[k] * (u * cdf + sigma * pdf);
+    g2 += signs[k] * (0.5 * (u * u + sigma * sigma) * cdf + 0.5 * u * sigma * pdf);
+  }
+  const double ab = fp.a * fp.b;
+  return {g2 / ab, g1 / ab, sigma * g0 / ab};
 }
 
 // One edge of the initial quadrilateral: t along it from `origin`, s across it, outwards.
@@ -86,8 +162,11 @@ struct NeighbourEdge {
 // must also lie delta or more inside each neighbouring edge (delta = blur reach). Near a corner
 // this trims the inner side of the band only, so the transition itself is used up to delta /
 // sin(alpha) from the corner.
-std::vector<Sample> band_samples(const cv::Mat& grey, const EdgeFrame& e, double t0, double t1, double w,
-                                 const EdgeCurve* curve, const std::array<NeighbourEdge, 2>& neighbours, double delta) {
+using Levels = std::array<double, 256>;  // grey value -> intensity fitted (see EdgeFitOptions::gamma)
+
+std::vector<Sample> band_samples(const cv::Mat& grey, const Levels& levels, const EdgeFrame& e, double t0, double t1,
+                                 double w, const EdgeCurve* curve, const std::array<NeighbourEdge, 2>& neighbours,
+                                 double delta) {
   double reach = w;
   if (curve) {
     for (double tau : {t0 / e.length - 0.5, 0.5 * (t0 + t1) / e.length - 0.5, t1 / e.length - 0.5}) {
@@ -120,7 +199,7 @@ std::vector<Sample> band_samples(const cv::Mat& grey, const EdgeFrame& e, double
                              neighbours[1].inward.dot(p - neighbours[1].corner) < delta)) {
         continue;
       }
-      out.push_back({tau, s, static_cast<double>(row[x])});
+      out.push_back({tau, s, levels[row[x]]});
     }
   }
   return out;
@@ -130,10 +209,10 @@ std::vector<Sample> band_samples(const cv::Mat& grey, const EdgeFrame& e, double
 // Shading: a = a0 + a1 tau + a2 s, b = b0 + b1 tau + b2 s (s in px): on a curved part the light
 // changes along and across the edge, and an unmodelled slope across it would shift the edge.
 template <int NC, typename Vec>
-double model_value(const Vec& p, const Sample& smp, Response* out = nullptr) {
+double model_value(const Vec& p, const Sample& smp, const Footprint& fp, Response* out = nullptr) {
   double f = 0;
   for (int j = NC - 1; j >= 0; --j) f = f * smp.tau + p[j];
-  const Response resp = edge_response(smp.s - f, p[NC]);
+  const Response resp = edge_response(smp.s - f, p[NC], fp);
   if (out) *out = resp;
   const double a = p[NC + 1] + p[NC + 2] * smp.tau + p[NC + 3] * smp.s;
   const double b = p[NC + 4] + p[NC + 5] * smp.tau + p[NC + 6] * smp.s;
@@ -156,8 +235,8 @@ struct ModelFit {
 };
 
 template <int NC>
-ModelFit fit_edge_model(const std::vector<Sample>& samples, int max_iterations, double max_sigma, double tolerance_px,
-                    Eigen::VectorXd& x_io) {
+ModelFit fit_edge_model(const std::vector<Sample>& samples, const Footprint& fp, int max_iterations, double max_sigma,
+                        double tolerance_px, Eigen::VectorXd& x_io) {
   constexpr int P = NC + 7;
   using Vec = Eigen::Matrix<double, P, 1>;
   using Mat = Eigen::Matrix<double, P, P>;
@@ -168,7 +247,7 @@ ModelFit fit_edge_model(const std::vector<Sample>& samples, int max_iterations, 
     Vec row;
     for (const Sample& smp : samples) {
       Response resp;
-      const double r = smp.value - model_value<NC>(p, smp, &resp);
+      const double r = smp.value - model_value<NC>(p, smp, fp, &resp);
       cost += r * r;
       if (!JtJ) continue;
       const double b = p[NC + 4] + p[NC + 5] * smp.tau + p[NC + 6] * smp.s;
@@ -232,29 +311,29 @@ ModelFit fit_edge_model(const std::vector<Sample>& samples, int max_iterations, 
 
 // RMS residual of the fitted model.
 template <int NC>
-double model_rms(const std::vector<Sample>& samples, const Eigen::VectorXd& x) {
+double model_rms(const std::vector<Sample>& samples, const Footprint& fp, const Eigen::VectorXd& x) {
   double sum_sq = 0;
   for (const Sample& smp : samples) {
-    const double r = smp.value - model_value<NC>(x, smp);
+    const double r = smp.value - model_value<NC>(x, smp, fp);
     sum_sq += r * r;
   }
   return std::sqrt(sum_sq / static_cast<double>(samples.size()));
 }
 
-double model_rms(const std::vector<Sample>& samples, int degree, const Eigen::VectorXd& x) {
+double model_rms(const std::vector<Sample>& samples, const Footprint& fp, int degree, const Eigen::VectorXd& x) {
   switch (degree) {
-    case 1: return model_rms<2>(samples, x);
-    case 2: return model_rms<3>(samples, x);
-    default: return model_rms<4>(samples, x);
+    case 1: return model_rms<2>(samples, fp, x);
+    case 2: return model_rms<3>(samples, fp, x);
+    default: return model_rms<4>(samples, fp, x);
   }
 }
 
-ModelFit fit_edge_model(const std::vector<Sample>& samples, int degree, int max_iterations, double max_sigma,
-                        double tolerance_px, Eigen::VectorXd& x) {
+ModelFit fit_edge_model(const std::vector<Sample>& samples, const Footprint& fp, int degree, int max_iterations,
+                        double max_sigma, double tolerance_px, Eigen::VectorXd& x) {
   switch (degree) {
-    case 1: return fit_edge_model<2>(samples, max_iterations, max_sigma, tolerance_px, x);
-    case 2: return fit_edge_model<3>(samples, max_iterations, max_sigma, tolerance_px, x);
-    default: return fit_edge_model<4>(samples, max_iterations, max_sigma, tolerance_px, x);
+    case 1: return fit_edge_model<2>(samples, fp, max_iterations, max_sigma, tolerance_px, x);
+    case 2: return fit_edge_model<3>(samples, fp, max_iterations, max_sigma, tolerance_px, x);
+    default: return fit_edge_model<4>(samples, fp, max_iterations, max_sigma, tolerance_px, x);
   }
 }
 
@@ -263,21 +342,25 @@ struct EdgeFitResult {
   std::string failure;
 };
 
-// Fits one edge over t in [lo, hi] with band half-width w: a first fit on a band around the
-// initial straight edge, then one on a band that follows the fitted curve, with the neighbouring
-// edges kept out by the fitted blur (delta = 3 sigma + 1/2). The polynomial degree is at most
-// L / options.min_px_per_degree for a stretch of L px: a cubic fitted to a few pixels
-// extrapolates badly.
-EdgeFitResult fit_edge(const cv::Mat& grey, const EdgeFrame& frame, double lo, double hi,
-                       const std::array<NeighbourEdge, 2>& neighbours, double w, const EdgeFitOptions& o) {
+// Fits one edge over t in [lo, hi] with band half-width w (`check`: refuse a fit that fails the
+// contrast, blur and residual limits): a first fit on a band around the
+// straight edge between the given corners, then (rounds = 2) one on a band that follows the
+// fitted curve. The neighbouring edges are kept out by delta = 3 sigma + 3/4 (the blur and the
+// pixel's half diagonal) plus `corner_error_px`, the uncertainty of the corners the neighbours
+// are drawn through. The polynomial degree is at most L / options.min_px_per_degree for a stretch
+// of L px: a cubic fitted to a few pixels extrapolates badly.
+EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFrame& frame, double lo, double hi,
+                       const std::array<NeighbourEdge, 2>& neighbours, double w, int rounds, double corner_error_px,
+                       bool check, const EdgeFitOptions& o) {
   EdgeCurve curve;
   curve.frame = frame;
+  const Footprint footprint = Footprint::across(frame.n);
   int degree = o.degree;
   Eigen::VectorXd x;
   const EdgeCurve* band_curve = nullptr;
   double sigma = o.initial_blur_px;
-  for (int round = 0; round < 2; ++round) {
-    const double delta = 3 * sigma + 0.5;
+  for (int round = 0; round < rounds; ++round) {
+    const double delta = 3 * sigma + 0.75 + corner_error_px;
     // The transition is clear of the neighbours from delta / sin(alpha) on.
     const double t0 = std::max(lo, delta / neighbours[0].sin_a);
     const double t1 = std::min(hi, frame.length - delta / neighbours[1].sin_a);
@@ -286,7 +369,7 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const EdgeFrame& frame, double lo, d
       degree = std::clamp(static_cast<int>((t1 - t0) / o.min_px_per_degree), 1, o.degree);
       x = Eigen::VectorXd::Zero(degree + 8);
     }
-    const auto samples = band_samples(grey, frame, std::max(lo, 0.0), std::min(hi, frame.length), w, band_curve,
+    const auto samples = band_samples(grey, levels, frame, std::max(lo, 0.0), std::min(hi, frame.length), w, band_curve,
                                       neighbours, delta);
     if (static_cast<int>(samples.size()) < std::max(o.min_pixels_per_edge, degree + 8)) {
       return {std::nullopt, "too few pixels along an edge (" + std::to_string(samples.size()) + ")"};
@@ -307,14 +390,14 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const EdgeFrame& frame, double lo, d
     auto fit = [&] {
       // The first round only places the band: a coarse tolerance will do.
       const double tolerance = round == 0 ? 10 * o.tolerance_px : o.tolerance_px;
-      const ModelFit f = fit_edge_model(samples, degree, o.max_iterations, o.max_blur_px, tolerance, x);
+      const ModelFit f = fit_edge_model(samples, footprint, degree, o.max_iterations, o.max_blur_px, tolerance, x);
       return f.ok && x.allFinite() ? std::optional<ModelFit>(f) : std::nullopt;
     };
     auto result = fit();
     if (!result) return {std::nullopt, "edge fit did not converge"};
     // Occam's razor on the final band: drop the highest curve coefficient while it is not
     // significant, so straight edges are not fitted with wiggles that extrapolate badly.
-    while (round == 1 && degree > 1 && result->top_z < o.degree_significance) {
+    while (round == rounds - 1 && degree > 1 && result->top_z < o.degree_significance) {
       Eigen::VectorXd lower(x.size() - 1);
       lower << x.head(degree), x.tail(7);
       x = lower;
@@ -325,9 +408,11 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const EdgeFrame& frame, double lo, d
     curve.c = x.head(degree + 1);
     sigma = curve.sigma = x[degree + 1];
     curve.contrast = x[degree + 5];
-    curve.rms = model_rms(samples, degree, x);
+    curve.rms = model_rms(samples, footprint, degree, x);
     band_curve = &curve;
   }
+  if (!check) return {curve, ""};
+  if (!(curve.contrast > 0)) return {std::nullopt, "edge contrast inverted (the fit found dark outside the marker)"};
   if (!(curve.contrast >= o.min_contrast)) {
     return {std::nullopt, "edge contrast " + std::to_string(static_cast<int>(std::lround(curve.contrast))) +
                               " grey levels is below " + std::to_string(static_cast<int>(o.min_contrast))};
@@ -441,12 +526,15 @@ std::vector<Observation> MarkerDetection::observations() const {
   return out;
 }
 
-EdgeFit refine_marker_corners(const cv::Mat& grey, const std::array<Eigen::Vector2d, 4>& q, int cells,
-                              const EdgeFitOptions& o) {
-  CV_Assert(grey.type() == CV_8UC1);
+namespace {
+
+// One pass of the refinement from corners q: frames, bands and neighbours drawn through q, whose
+// corners are uncertain by `corner_error_px`; corners = intersections of the fitted edges. Only
+// the final pass `check`s the fits against the limits.
+EdgeFit refine_pass(const cv::Mat& grey, const Levels& levels, const std::array<Eigen::Vector2d, 4>& q, int cells,
+                    int rounds, double corner_error_px, bool check, const EdgeFitOptions& o) {
   EdgeFit result;
   result.corners = q;
-  if (o.degree < 1 || o.degree > 3 || !(o.span > 0 && o.span <= 1)) throw UsageError("bad edge-fit options");
   const Eigen::Vector2d centre = 0.25 * (q[0] + q[1] + q[2] + q[3]);
   std::array<EdgeFrame, 4> frames;
   std::array<double, 4> window{};
@@ -504,14 +592,16 @@ EdgeFit refine_marker_corners(const cv::Mat& grey, const std::array<Eigen::Vecto
                                           NeighbourEdge{q[(e + 1) % 4], inward((e + 1) % 4, (e + 2) % 4),
                                                         sin_angle[(e + 1) % 4]}};
     if (o.span >= 1) {
-      const auto curve = take(fit_edge(grey, frames[e], 0, L, nb, window[e], o));
+      const auto curve = take(fit_edge(grey, levels, frames[e], 0, L, nb, window[e], rounds, corner_error_px, check, o));
       ++n_fits;
       if (!curve) return result;
       fits[e][1] = curve;
       fits[(e + 1) % 4][0] = curve;
     } else {
-      const auto first = take(fit_edge(grey, frames[e], 0, o.span * L, nb, window[e], o));
-      const auto second = take(fit_edge(grey, frames[e], (1 - o.span) * L, L, nb, window[e], o));
+      const auto first =
+          take(fit_edge(grey, levels, frames[e], 0, o.span * L, nb, window[e], rounds, corner_error_px, check, o));
+      const auto second = take(
+          fit_edge(grey, levels, frames[e], (1 - o.span) * L, L, nb, window[e], rounds, corner_error_px, check, o));
       n_fits += 2;
       if (!first || !second) return result;
       fits[e][1] = first;
@@ -519,26 +609,52 @@ EdgeFit refine_marker_corners(const cv::Mat& grey, const std::array<Eigen::Vecto
     }
   }
   result.blur_px = blur / n_fits;
-  const double cell = mean_side / cells;
-  const double max_shift = std::max(o.min_max_shift_px, o.max_shift_cells * cell);
   for (int k = 0; k < 4; ++k) {
     const auto p = intersect(*fits[k][0], *fits[k][1], q[k]);
     if (!p) {
       result.failure = "edges of corner " + std::to_string(k) + " do not intersect";
       return result;
     }
-    // An error e across each edge moves an acute corner by e / sin(alpha / 2) along its bisector:
-    // OpenCV's polygon corners are that much worse there, so the allowance grows the same way.
-    const double allowed = max_shift * std::max(1.0, std::sin(M_PI / 4) / std::sin(interior_angle(q, k) / 2));
-    if ((*p - q[k]).norm() > allowed) {
-      result.failure = "corner " + std::to_string(k) + " moved " + std::to_string((*p - q[k]).norm()) +
-                       " px from OpenCV's (more than " + std::to_string(allowed) + ")";
-      return result;
-    }
     result.corners[k] = *p;
   }
   result.ok = true;
   return result;
+}
+
+}  // namespace
+
+EdgeFit refine_marker_corners(const cv::Mat& grey, const std::array<Eigen::Vector2d, 4>& q, int cells,
+                              const EdgeFitOptions& o) {
+  CV_Assert(grey.type() == CV_8UC1);
+  if (o.degree < 1 || o.degree > 3 || !(o.span > 0 && o.span <= 1) || !(o.gamma > 0) || !(o.initial_corner_error_px >= 0)) {
+    throw UsageError("bad edge-fit options");
+  }
+  Levels levels;
+  for (int v = 0; v < 256; ++v) levels[static_cast<std::size_t>(v)] = 255 * std::pow(v / 255.0, o.gamma);
+  // A coarse pass from OpenCV's polygon (its corners off by up to ~1 px), then the fine pass with
+  // frames, bands and neighbours drawn through the coarse corners. If the coarse pass fails (a
+  // small marker leaves too little edge clear of its uncertain corners), the fine pass starts
+  // from OpenCV's corners with their uncertainty.
+  const EdgeFit coarse = refine_pass(grey, levels, q, cells, 1, o.initial_corner_error_px, true, o);
+  EdgeFit fine = coarse.ok ? refine_pass(grey, levels, coarse.corners, cells, 2, 0, true, o)
+                           : refine_pass(grey, levels, q, cells, 2, o.initial_corner_error_px, true, o);
+  if (!fine.ok) return fine;
+  double mean_side = 0;
+  for (int k = 0; k < 4; ++k) mean_side += 0.25 * (q[(k + 1) % 4] - q[k]).norm();
+  const double max_shift = std::max(o.min_max_shift_px, o.max_shift_cells * mean_side / cells);
+  for (int k = 0; k < 4; ++k) {
+    // An error e across each edge moves an acute corner by e / sin(alpha / 2) along its bisector:
+    // OpenCV's polygon corners are that much worse there, so the allowance grows the same way.
+    const double allowed = max_shift * std::max(1.0, std::sin(M_PI / 4) / std::sin(interior_angle(q, k) / 2));
+    const double moved = (fine.corners[k] - q[k]).norm();
+    if (moved > allowed) {
+      fine.ok = false;
+      fine.failure = "corner " + std::to_string(k) + " moved " + std::to_string(moved) + " px from OpenCV's (more than " +
+                     std::to_string(allowed) + ")";
+      return fine;
+    }
+  }
+  return fine;
 }
 
 MarkerDetection detect_markers(const cv::Mat& grey, const std::string& image_name, const MarkerDictionary& dictionary,

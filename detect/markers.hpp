@@ -56,16 +56,20 @@ CornerRefinement corner_refinement_from_name(const std::string& name);
 // Edge-model corner refinement. For each edge of the marker's quadrilateral, with t the distance
 // along the edge from its first corner (length L), s the signed distance across it (outwards,
 // towards the white quiet zone, positive) and tau = t / L - 1/2, every pixel of a band
-// |s - f(tau)| <= w, t in [m, L - m] is fitted by
-//   I = a0 + a1 tau + (b0 + b1 tau) R(s - f(tau); sigma),   f(tau) = c_0 + c_1 tau + ... + c_D tau^D
-//   R(x; sigma) = G(x + 1/2) - G(x - 1/2),  G(x) = x Phi(x/sigma) + sigma phi(x/sigma)
-// i.e. a straight (D = 1) or gently curved (D = 2, 3) step edge, blurred by a Gaussian PSF of
-// standard deviation sigma and integrated over the pixel's width across the edge, on a shading
-// that varies linearly along the edge. Parameters x = [c_0..c_D, sigma, a0, a1, b0, b1], solved by
+// |s - f(tau)| <= w (pixels the neighbouring edges reach left out) is fitted by
+//   I = a + b R(s - f(tau); sigma),   f(tau) = c_0 + c_1 tau + ... + c_D tau^D,
+//   a = a0 + a1 tau + a2 s,  b = b0 + b1 tau + b2 s
+// i.e. a straight (D = 1) or curved (D = 2, 3) step edge, blurred by a Gaussian PSF of standard
+// deviation sigma and integrated over the pixel's footprint across the edge (R: the step convolved
+// with the Gaussian and with the pixel square's projection on the edge normal, a trapezoid; closed
+// form in markers.cpp), on a shading that varies linearly along and across the edge (light on a
+// curved part). Parameters x = [c_0..c_D, sigma, a0, a1, a2, b0, b1, b2], solved by
 // Levenberg-Marquardt (Madsen, Nielsen & Tingleff, "Methods for non-linear least squares
 // problems", 2004, sec. 3.2). Each corner is the intersection of its two edge curves (Newton's
 // method in 2D). Curved edges come from lens distortion (~0.1 px sagitta for a 130 px edge near
-// the border at k1 = -0.08) and from markers stuck on a curved part; D = 2 absorbs both.
+// the border at k1 = -0.08) and from markers stuck on a curved part: D starts at 3 and drops while
+// the top coefficient is not significant. Two passes: a coarse one around OpenCV's polygon, a fine
+// one through the coarse corners. Measured choices and figures: docs/detect.md.
 struct EdgeFitOptions {
   int degree = 3;                 // D at most: 1 straight lines, 2 parabolas, 3 cubics ...
   double degree_significance = 3; // ... lowered while |c_D| is below this many standard errors
@@ -77,6 +81,8 @@ struct EdgeFitOptions {
   int max_iterations = 30;        // Levenberg-Marquardt iterations per edge and round
   double tolerance_px = 1e-3;     // ... until the curve moves less than this
   double initial_blur_px = 0.7;   // sigma to start from (and for the first corner margins)
+  double initial_corner_error_px = 1; // OpenCV's polygon corners are this far off at most: the
+                                      // first pass keeps that much further from the corners
   double min_px_per_degree = 4;   // a stretch of L px is fitted with degree <= L / this (>= 1)
   double min_fit_length_px = 3;   // shortest stretch of an edge worth fitting
   double min_contrast = 15;       // b0: white minus black, grey levels
@@ -85,6 +91,10 @@ struct EdgeFitOptions {
   double max_shift_cells = 0.5;   // a corner may move this far from OpenCV's (in cells) ...
   double min_max_shift_px = 2;    // ... or this far in pixels, whichever is larger
   int min_pixels_per_edge = 12;
+  // The model blurs light, so intensities must be linear in light: grey value v is fitted as
+  // 255 (v / 255)^gamma. 1 for linear images (synth's renders, raw data); about 2.2 for sRGB
+  // JPEGs, whose midtones otherwise move a blurred edge towards the dark side by roughly 0.8 sigma.
+  double gamma = 1;
 };
 
 struct MarkerDetectOptions {

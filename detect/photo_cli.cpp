@@ -54,6 +54,9 @@ void add_photo_options(CLI::App& app, PhotoCli& c) {
       ->group(markers)->capture_default_str()->check(CLI::Range(0.0, 255.0));
   app.add_option("--edge-max-blur-px", e.max_blur_px, "Edge fit: reject a marker whose edges are blurrier (sigma), px")
       ->group(markers)->capture_default_str()->check(CLI::Range(0.1, 50.0));
+  app.add_option("--edge-gamma", e.gamma,
+                 "Edge fit: grey v is fitted as 255 (v/255)^gamma; 1 = linear images (synth), ~2.2 = sRGB JPEGs")
+      ->group(markers)->capture_default_str()->check(CLI::Range(0.2, 5.0));
   app.add_option("--aruco-error-correction", c.options.markers.error_correction_rate,
                  "OpenCV's errorCorrectionRate: share of the dictionary's correctable bits used")
       ->group(markers)->capture_default_str()->check(CLI::Range(0.0, 1.0));

@@ -1,0 +1,146 @@
+// match's command line, input reading and summary (see cli.hpp).
+#include "match/cli.hpp"
+
+#include <algorithm>
+#include <filesystem>
+#include <sstream>
+
+#include "formats/error.hpp"
+#include "formats/log.hpp"
+#include "formats/tool.hpp"
+
+namespace photomill::match {
+
+namespace fs = std::filesystem;
+
+void add_options(CLI::App& app, Cli& c) {
+  MatchOptions& o = c.options;
+  app.add_option("inputs", c.inputs,
+                 "Observations CSVs (image,point_id,u_px,v_px) and/or .feat files, told apart by content; "
+                 "'-' reads stdin (the default when nothing else is given)");
+  app.add_option("--features", c.features_dir, "Folder of .feat files (detect --features): all *.feat in it");
+  app.add_option("-o,--output", c.output, "Tracks CSV (default: stdout)");
+  app.add_option("--camera", c.camera, "camera.yaml: undistort before the epipolar checks (recommended)");
+  app.add_option("--poses", c.poses, "Known poses CSV (cam_from_world): verify with F from them (needs --camera)");
+  const std::string verify = "Verification";
+  app.add_option("--threshold-px", o.fit.threshold_px, "Epipolar inlier threshold (Sampson distance), px")
+      ->group(verify)->capture_default_str()->check(CLI::Range(1e-3, 1e3));
+  app.add_option("--ransac-confidence", o.fit.confidence, "USAC/MAGSAC++ confidence")
+      ->group(verify)->capture_default_str()->check(CLI::Range(0.5, 1.0));
+  app.add_option("--ransac-iterations", o.fit.max_iterations, "USAC/MAGSAC++ iterations at most")
+      ->group(verify)->capture_default_str()->check(CLI::Range(10, 10'000'000));
+  app.add_option("--min-inliers", o.fit.min_inliers, "Inliers a pair needs to count as verified")
+      ->group(verify)->capture_default_str()->check(CLI::Range(8, 1'000'000));
+  app.add_option("--min-inlier-ratio", o.fit.min_inlier_ratio, "... and their share of the pair's correspondences")
+      ->group(verify)->capture_default_str()->check(CLI::Range(0.0, 1.0));
+  app.add_flag("--keep-unverified", o.keep_unverified,
+               "Keep coded observations no pair could verify (pairs with < 8 shared points, no --poses)")
+      ->group(verify);
+  const std::string feat = "Features";
+  app.add_option("--ratio", o.ratio, "Lowe's ratio test: best < ratio * second best descriptor distance")
+      ->group(feat)->capture_default_str()->check(CLI::Range(0.1, 1.0));
+  app.add_flag("--no-mutual", c.no_mutual, "Skip the mutual-best check")->group(feat);
+  app.add_option("--flann-checks", o.flann_checks, "FLANN kd-tree leaves visited per query")
+      ->group(feat)->capture_default_str()->check(CLI::Range(1, 100000));
+  app.add_option("--exhaustive-max-images", o.exhaustive_max_images, "Match all pairs up to this many images ...")
+      ->group(feat)->capture_default_str()->check(CLI::Range(0, 100000));
+  app.add_option("--sequence-neighbours", o.sequence_neighbours, "... beyond, each image with its next N in input order")
+      ->group(feat)->capture_default_str()->check(CLI::Range(0, 1000));
+  app.add_option("--coded-neighbours", o.coded_neighbours, "... and with the N images sharing most coded points")
+      ->group(feat)->capture_default_str()->check(CLI::Range(0, 1000));
+  app.add_option("--min-track-length", o.min_track_length, "Images a track must span")
+      ->group(feat)->capture_default_str()->check(CLI::Range(2, 100000));
+  app.add_option("--feature-id-offset", o.feature_track_offset, "First track id of natural-feature tracks")
+      ->group(feat)->capture_default_str()->check(CLI::Range(std::int64_t{0}, std::int64_t{1} << 53));
+  app.add_option("-j,--jobs", o.jobs, "Image pairs matched in parallel (0: all cores)")
+      ->capture_default_str()->check(CLI::Range(0, 1024));
+}
+
+namespace {
+
+bool is_feature_file(const std::string& text) {
+  std::size_t at = text.rfind("\xEF\xBB\xBF", 0) == 0 ? 3 : 0;
+  while (at < text.size() && (text[at] == ' ' || text[at] == '\t' || text[at] == '\r' || text[at] == '\n')) ++at;
+  return text.compare(at, 18, "photomill-features") == 0;
+}
+
+}  // namespace
+
+MatchInputs read_inputs(Cli& c) {
+  c.options.mutual = !c.no_mutual;
+  std::vector<std::string> paths = c.inputs;
+  if (!c.features_dir.empty()) {
+    if (!fs::is_directory(c.features_dir)) throw InputError(c.features_dir, 0, "not a folder");
+    std::vector<std::string> feats;
+    for (const auto& e : fs::directory_iterator(c.features_dir)) {
+      if (e.path().extension() == ".feat") feats.push_back(e.path().string());
+    }
+    std::sort(feats.begin(), feats.end());
+    if (feats.empty()) throw InputError(c.features_dir, 0, "no .feat files in this folder");
+    paths.insert(paths.end(), feats.begin(), feats.end());
+  }
+  if (paths.empty()) paths.push_back("-");
+  MatchInputs in;
+  for (const auto& path : paths) {
+    const std::string text = tool::read_all(path, std::size_t{1} << 32);
+    std::istringstream stream(text);
+    if (is_feature_file(text)) {
+      in.features.push_back(read_features(stream, tool::source_name(path)));
+    } else {
+      const auto obs = read_observations(stream, tool::source_name(path));
+      in.observations.insert(in.observations.end(), obs.begin(), obs.end());
+    }
+  }
+  if (!c.camera.empty()) {
+    in.camera = read_camera_yaml(*tool::open_input(c.camera), tool::source_name(c.camera));
+  } else {
+    log::warn("no --camera: epipolar checks on distorted pixels, where lens distortion can reject correct points");
+  }
+  if (!c.poses.empty()) in.poses = read_poses(*tool::open_input(c.poses), tool::source_name(c.poses));
+  return in;
+}
+
+void report(const MatchResult& r, const Cli& c) {
+  std::vector<int> inliers;
+  std::size_t verified = 0;
+  for (const auto& p : r.pairs) {
+    const int total = p.coded_inliers + p.feature_inliers;
+    if (p.verified) {
+      ++verified;
+      inliers.push_back(total);
+    }
+    log::debug(r.images[p.a] + " - " + r.images[p.b] + ": " + std::to_string(p.coded_shared) + " coded points (" +
+               std::to_string(p.coded_inliers) + " consistent), " + std::to_string(p.feature_matches) +
+               " feature matches (" + std::to_string(p.feature_inliers) + " inliers), " +
+               (p.verified ? (p.from_poses ? "F from poses" : "F estimated") : "not verified"));
+  }
+  std::string line = std::to_string(r.images.size()) + " images, " + std::to_string(r.pairs.size()) + " pairs looked at, " +
+                     std::to_string(verified) + " verified";
+  if (!inliers.empty()) {
+    std::sort(inliers.begin(), inliers.end());
+    line += "; inliers per verified pair: min " + std::to_string(inliers.front()) + ", median " +
+            std::to_string(inliers[inliers.size() / 2]) + ", max " + std::to_string(inliers.back());
+  }
+  log::info(line);
+  std::size_t inconsistent = 0;
+  for (const auto& d : r.dropped) {
+    if (d.reason.rfind("inconsistent", 0) == 0) ++inconsistent;
+    log::debug("dropped " + d.image + " point " + std::to_string(d.point_id) + ": " + d.reason);
+  }
+  log::info("coded points: " + std::to_string(r.coded_tracks) + " tracks; " + std::to_string(r.dropped.size()) +
+            " observations left out (" + std::to_string(inconsistent) + " inconsistent with their other images)" +
+            (r.dropped.empty() ? "" : "; -v lists them"));
+  if (r.feature_tracks > 0 || r.feature_unions.edges > 0) {
+    log::info("natural features: " + std::to_string(r.feature_tracks) + " tracks from " +
+              std::to_string(r.feature_unions.edges) + " verified matches; " +
+              std::to_string(r.feature_unions.conflicts) + " matches refused (two features of one image), " +
+              std::to_string(r.feature_observations_voted_out) + " observations voted out; ids from " +
+              std::to_string(c.options.feature_track_offset));
+  }
+  std::string hist = "track lengths:";
+  for (const auto& [length, count] : r.track_lengths) hist += " " + std::to_string(length) + ": " + std::to_string(count) + ",";
+  if (!r.track_lengths.empty()) hist.pop_back();
+  log::info(r.track_lengths.empty() ? "no tracks" : hist);
+}
+
+}  // namespace photomill::match

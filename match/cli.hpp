@@ -1,0 +1,33 @@
+// match's command line: options, reading the inputs (observations CSVs and .feat files, told
+// apart by content; a folder of .feat files; camera and poses), and the summary on stderr.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "match/match.hpp"
+
+namespace photomill::match {
+
+struct Cli {
+  std::vector<std::string> inputs;  // observations CSVs and/or .feat files; "-" = stdin
+  std::string features_dir;         // every *.feat in it
+  std::string camera;
+  std::string poses;
+  std::string output = "-";
+  bool no_mutual = false;
+  MatchOptions options;
+};
+
+void add_options(CLI::App& app, Cli& cli);
+
+// Reads everything the command line names. Throws InputError naming the file.
+MatchInputs read_inputs(Cli& cli);
+
+// The summary on stderr (pairs, inliers per pair, dropped observations, track lengths); with -v
+// one line per pair and every dropped observation.
+void report(const MatchResult& result, const Cli& cli);
+
+}  // namespace photomill::match

@@ -1,0 +1,389 @@
+// match: observations and features to verified tracks (contract in match.hpp).
+#include "match/match.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <exception>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <thread>
+#include <unordered_map>
+
+#include <opencv2/core.hpp>
+#include <opencv2/flann.hpp>
+
+#include "formats/error.hpp"
+
+namespace photomill::match {
+
+namespace {
+
+struct ImageData {
+  std::vector<Eigen::Vector2d> coded_px;        // as observed
+  std::vector<Eigen::Vector2d> coded_ideal;     // undistorted
+  std::vector<PointId> coded_ids;
+  std::unordered_map<PointId, std::size_t> coded_index;
+  const FeatureSet* features = nullptr;
+  std::vector<Eigen::Vector2d> feature_ideal;   // undistorted keypoints
+  cv::Mat descriptors;                          // CV_32F, one row per keypoint
+  std::unique_ptr<cv::flann::Index> index;      // over `descriptors`
+};
+
+// Runs `work(k)` for k in [0, n) on `jobs` threads; rethrows the first exception.
+void parallel_for(std::size_t n, int jobs, const std::function<void(std::size_t)>& work) {
+  std::atomic<std::size_t> next{0};
+  std::atomic<bool> stop{false};
+  std::exception_ptr error;
+  std::mutex mutex;
+  auto worker = [&] {
+    for (std::size_t k = next++; k < n && !stop; k = next++) {
+      try {
+        work(k);
+      } catch (...) {
+        const std::lock_guard<std::mutex> lock(mutex);
+        if (!error) error = std::current_exception();
+        stop = true;
+      }
+    }
+  };
+  const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+  const std::size_t threads = std::min<std::size_t>(jobs > 0 ? static_cast<std::size_t>(jobs) : cores, std::max<std::size_t>(n, 1));
+  {
+    std::vector<std::jthread> pool;
+    for (std::size_t t = 1; t < threads; ++t) pool.emplace_back(worker);
+    worker();
+  }
+  if (error) std::rethrow_exception(error);
+}
+
+// Nearest and second-nearest neighbours of every row of `query` in `index`: best index and the
+// ratio of the distances (FLANN's L2 gives squared distances).
+struct Nearest {
+  std::vector<int> best;
+  std::vector<float> ratio;
+};
+Nearest nearest_two(cv::flann::Index& index, const cv::Mat& query, int checks) {
+  Nearest out;
+  if (query.rows == 0) return out;
+  cv::Mat indices, dists;
+  index.knnSearch(query, indices, dists, 2, cv::flann::SearchParams(checks));
+  out.best.resize(static_cast<std::size_t>(query.rows));
+  out.ratio.resize(static_cast<std::size_t>(query.rows));
+  for (int r = 0; r < query.rows; ++r) {
+    out.best[static_cast<std::size_t>(r)] = indices.at<int>(r, 0);
+    const float d1 = dists.at<float>(r, 0), d2 = dists.at<float>(r, 1);
+    out.ratio[static_cast<std::size_t>(r)] = d2 > 0 ? std::sqrt(d1 / d2) : 1.0f;
+  }
+  return out;
+}
+
+struct FeatureMatch {
+  int a = 0, b = 0;  // keypoint indices
+  double cost = 0;   // the worse of the two distance ratios
+};
+
+// Lowe's ratio test in both directions and the mutual check.
+std::vector<FeatureMatch> match_descriptors(ImageData& a, ImageData& b, const MatchOptions& o) {
+  std::vector<FeatureMatch> out;
+  if (a.descriptors.rows < 2 || b.descriptors.rows < 2) return out;
+  const Nearest ab = nearest_two(*b.index, a.descriptors, o.flann_checks);
+  const Nearest ba = nearest_two(*a.index, b.descriptors, o.flann_checks);
+  for (std::size_t i = 0; i < ab.best.size(); ++i) {
+    const int j = ab.best[i];
+    if (j < 0 || ab.ratio[i] >= o.ratio) continue;
+    const auto ju = static_cast<std::size_t>(j);
+    const bool mutual = ba.best[ju] == static_cast<int>(i);
+    if (o.mutual && (!mutual || ba.ratio[ju] >= o.ratio)) continue;
+    out.push_back({static_cast<int>(i), j, std::max(ab.ratio[i], o.mutual ? ba.ratio[ju] : 0.0f)});
+  }
+  return out;
+}
+
+struct PairWork {
+  PairReport report;
+  std::optional<Eigen::Matrix3d> F;
+  std::vector<FeatureMatch> inlier_matches;
+};
+
+}  // namespace
+
+std::vector<std::pair<std::size_t, std::size_t>> feature_pairs(
+    std::size_t n, const MatchOptions& o, const std::function<int(std::size_t, std::size_t)>& coded_overlap) {
+  std::set<std::pair<std::size_t, std::size_t>> pairs;
+  if (n <= static_cast<std::size_t>(std::max(o.exhaustive_max_images, 0))) {
+    for (std::size_t a = 0; a < n; ++a) {
+      for (std::size_t b = a + 1; b < n; ++b) pairs.emplace(a, b);
+    }
+    return {pairs.begin(), pairs.end()};
+  }
+  for (std::size_t a = 0; a < n; ++a) {
+    for (int d = 1; d <= o.sequence_neighbours && a + static_cast<std::size_t>(d) < n; ++d) {
+      pairs.emplace(a, a + static_cast<std::size_t>(d));
+    }
+    if (o.coded_neighbours <= 0) continue;
+    std::vector<std::pair<int, std::size_t>> overlap;
+    for (std::size_t b = 0; b < n; ++b) {
+      if (b == a) continue;
+      const int shared = coded_overlap(a, b);
+      if (shared > 0) overlap.emplace_back(-shared, b);
+    }
+    const auto k = std::min<std::size_t>(overlap.size(), static_cast<std::size_t>(o.coded_neighbours));
+    std::partial_sort(overlap.begin(), overlap.begin() + static_cast<std::ptrdiff_t>(k), overlap.end());
+    for (std::size_t m = 0; m < k; ++m) pairs.emplace(std::min(a, overlap[m].second), std::max(a, overlap[m].second));
+  }
+  return {pairs.begin(), pairs.end()};
+}
+
+MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::function<void(const std::string&)>& progress) {
+  auto say = [&](const std::string& m) {
+    if (progress) progress(m);
+  };
+  if (!(o.ratio > 0 && o.ratio <= 1)) throw UsageError("--ratio must be in (0, 1]");
+  if (!(o.fit.threshold_px > 0)) throw UsageError("--threshold-px must be positive");
+  if (o.feature_track_offset < 0) throw UsageError("--feature-id-offset must be non-negative");
+  if (!in.poses.empty() && !in.camera) throw UsageError("--poses needs --camera (F = K^-T [t]x R K^-1)");
+
+  MatchResult result;
+  std::unordered_map<std::string, std::size_t> image_index;
+  auto image_of = [&](const std::string& name) {
+    const auto [it, fresh] = image_index.emplace(name, result.images.size());
+    if (fresh) result.images.push_back(name);
+    return it->second;
+  };
+  for (const auto& ob : in.observations) image_of(ob.image);
+  for (const auto& fs : in.features) image_of(fs.image);
+  const std::size_t n = result.images.size();
+  if (n < 2) throw GeometryError("nothing to match: the inputs cover " + std::to_string(n) + " image(s), at least 2 are needed");
+
+  std::vector<ImageData> data(n);
+  for (const auto& ob : in.observations) {
+    ImageData& d = data[image_index.at(ob.image)];
+    if (!d.coded_index.emplace(ob.point_id, d.coded_ids.size()).second) {
+      throw InputError(ob.image, 0, "point " + std::to_string(ob.point_id) + " observed twice");
+    }
+    d.coded_ids.push_back(ob.point_id);
+    d.coded_px.emplace_back(ob.u_px, ob.v_px);
+  }
+  int dim = -1;
+  for (const auto& fs : in.features) {
+    ImageData& d = data[image_index.at(fs.image)];
+    if (d.features) throw InputError(fs.image, 0, "features of this image given twice");
+    if (!fs.keypoints.empty()) {
+      if (dim >= 0 && fs.descriptor_dim != dim) {
+        throw InputError(fs.image, 0, "descriptors of " + std::to_string(fs.descriptor_dim) + " values, others have " +
+                                          std::to_string(dim));
+      }
+      dim = fs.descriptor_dim;
+    }
+    d.features = &fs;
+  }
+  std::unordered_map<std::string, const Pose*> pose_of;
+  for (const auto& p : in.poses) pose_of[p.image] = &p;
+  if (!in.poses.empty()) {
+    for (const auto& name : result.images) {
+      if (!pose_of.count(name)) throw InputError(name, 0, "no pose for this image in --poses");
+    }
+  }
+  for (const auto& d : data) {
+    for (PointId id : d.coded_ids) {
+      if (id >= o.feature_track_offset && !in.features.empty()) {
+        throw UsageError("coded point id " + std::to_string(id) + " collides with natural-feature track ids (from " +
+                         std::to_string(o.feature_track_offset) + "): raise --feature-id-offset");
+      }
+    }
+  }
+
+  // Undistort, and index the descriptors (in parallel over images).
+  const Undistorter undistort(in.camera);
+  say("indexing " + std::to_string(in.features.size()) + " feature sets");
+  parallel_for(n, o.jobs, [&](std::size_t i) {
+    ImageData& d = data[i];
+    d.coded_ideal = undistort.apply(d.coded_px);
+    if (!d.features) return;
+    std::vector<Eigen::Vector2d> kp;
+    for (const auto& k : d.features->keypoints) kp.emplace_back(k.x_px, k.y_px);
+    d.feature_ideal = undistort.apply(kp);
+    const int rows = static_cast<int>(d.features->keypoints.size());
+    cv::Mat(rows, d.features->descriptor_dim, CV_8U, const_cast<std::uint8_t*>(d.features->descriptors.data()))
+        .convertTo(d.descriptors, CV_32F);
+    if (rows >= 2) {
+      // FLANN draws its random trees from OpenCV's thread-local RNG: seed it per image so the
+      // trees, hence the matches, do not depend on which thread indexed which image before.
+      cv::theRNG() = cv::RNG(0x9E3779B9u + static_cast<std::uint64_t>(i));
+      d.index = std::make_unique<cv::flann::Index>(d.descriptors, cv::flann::KDTreeIndexParams(o.flann_trees));
+    }
+  });
+
+  // Pairs: those sharing coded points, plus the descriptor pairs.
+  std::unordered_map<PointId, std::vector<std::size_t>> seen_in;  // point id -> images
+  for (std::size_t i = 0; i < n; ++i) {
+    for (PointId id : data[i].coded_ids) seen_in[id].push_back(i);
+  }
+  std::vector<std::vector<int>> overlap(n, std::vector<int>(n, 0));
+  for (const auto& [id, images] : seen_in) {
+    for (std::size_t x = 0; x < images.size(); ++x) {
+      for (std::size_t y = x + 1; y < images.size(); ++y) {
+        ++overlap[images[x]][images[y]];
+        ++overlap[images[y]][images[x]];
+      }
+    }
+  }
+  std::set<std::pair<std::size_t, std::size_t>> pair_set;
+  for (std::size_t a = 0; a < n; ++a) {
+    for (std::size_t b = a + 1; b < n; ++b) {
+      if (overlap[a][b] > 0) pair_set.emplace(a, b);
+    }
+  }
+  std::vector<std::size_t> with_features;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (data[i].index) with_features.push_back(i);
+  }
+  for (const auto& [x, y] : feature_pairs(with_features.size(), o, [&](std::size_t p, std::size_t q) {
+         return overlap[with_features[p]][with_features[q]];
+       })) {
+    pair_set.emplace(with_features[x], with_features[y]);
+  }
+  const std::vector<std::pair<std::size_t, std::size_t>> pairs(pair_set.begin(), pair_set.end());
+
+  // Match and verify every pair.
+  say("matching " + std::to_string(pairs.size()) + " image pairs");
+  std::vector<PairWork> work(pairs.size());
+  std::atomic<std::size_t> done{0};
+  std::mutex say_mutex;
+  parallel_for(pairs.size(), o.jobs, [&](std::size_t k) {
+    const auto [ia, ib] = pairs[k];
+    ImageData& a = data[ia];
+    ImageData& b = data[ib];
+    PairWork& w = work[k];
+    w.report.a = ia;
+    w.report.b = ib;
+    std::vector<Eigen::Vector2d> pa, pb;
+    for (std::size_t i = 0; i < a.coded_ids.size(); ++i) {
+      const auto it = b.coded_index.find(a.coded_ids[i]);
+      if (it == b.coded_index.end()) continue;
+      pa.push_back(a.coded_ideal[i]);
+      pb.push_back(b.coded_ideal[it->second]);
+    }
+    w.report.coded_shared = static_cast<int>(pa.size());
+    std::vector<FeatureMatch> matches;
+    if (a.index && b.index) matches = match_descriptors(a, b, o);
+    w.report.feature_matches = static_cast<int>(matches.size());
+    for (const auto& m : matches) {
+      pa.push_back(a.feature_ideal[static_cast<std::size_t>(m.a)]);
+      pb.push_back(b.feature_ideal[static_cast<std::size_t>(m.b)]);
+    }
+    std::vector<bool> inlier(pa.size(), false);
+    if (!in.poses.empty()) {
+      w.F = fundamental_from_poses(in.camera->camera_matrix, *pose_of.at(result.images[ia]), *pose_of.at(result.images[ib]));
+      w.report.from_poses = true;
+      for (std::size_t i = 0; i < pa.size(); ++i) inlier[i] = sampson_distance_px(*w.F, pa[i], pb[i]) <= o.fit.threshold_px;
+    } else if (const auto fit = estimate_fundamental(pa, pb, o.fit)) {
+      w.F = fit->F;
+      inlier = fit->inliers;
+    }
+    w.report.verified = w.F.has_value();
+    if (w.F) {
+      for (int i = 0; i < w.report.coded_shared; ++i) w.report.coded_inliers += inlier[static_cast<std::size_t>(i)] ? 1 : 0;
+      for (std::size_t m = 0; m < matches.size(); ++m) {
+        if (inlier[static_cast<std::size_t>(w.report.coded_shared) + m]) w.inlier_matches.push_back(matches[m]);
+      }
+      w.report.feature_inliers = static_cast<int>(w.inlier_matches.size());
+    }
+    const std::size_t finished = ++done;
+    if (progress && (finished % 10 == 0 || finished == pairs.size())) {
+      const std::lock_guard<std::mutex> lock(say_mutex);
+      say("pairs: " + std::to_string(finished) + "/" + std::to_string(pairs.size()));
+    }
+  });
+  std::map<std::pair<std::size_t, std::size_t>, const PairWork*> by_pair;
+  for (const auto& w : work) {
+    result.pairs.push_back(w.report);
+    by_pair[{w.report.a, w.report.b}] = &w;
+  }
+  // Pairwise verdict of two observations (image, undistorted position) of one track.
+  auto agree = [&](std::size_t ia, const Eigen::Vector2d& xa, std::size_t ib, const Eigen::Vector2d& xb) -> std::optional<bool> {
+    const bool swap = ia > ib;
+    const auto it = by_pair.find(swap ? std::make_pair(ib, ia) : std::make_pair(ia, ib));
+    if (it == by_pair.end() || !it->second->F) return std::nullopt;
+    const double d = swap ? sampson_distance_px(*it->second->F, xb, xa) : sampson_distance_px(*it->second->F, xa, xb);
+    return d <= o.fit.threshold_px;
+  };
+
+  // Coded tracks: group by id, vote.
+  std::vector<PointId> coded_ids;
+  for (const auto& [id, images] : seen_in) coded_ids.push_back(id);
+  std::sort(coded_ids.begin(), coded_ids.end());
+  for (PointId id : coded_ids) {
+    const auto& images = seen_in.at(id);
+    if (images.size() < 2) {
+      result.dropped.push_back({result.images[images[0]], id, "seen in one image only"});
+      continue;
+    }
+    auto position = [&](std::size_t k) { return data[images[k]].coded_ideal[data[images[k]].coded_index.at(id)]; };
+    std::vector<bool> verified;
+    const auto kept = vote_track(
+        images.size(), [&](std::size_t x, std::size_t y) { return agree(images[x], position(x), images[y], position(y)); },
+        &verified);
+    std::vector<std::size_t> final_kept;
+    for (std::size_t k = 0; k < images.size(); ++k) {
+      const bool is_kept = std::find(kept.begin(), kept.end(), k) != kept.end();
+      if (is_kept && (verified[k] || o.keep_unverified)) {
+        final_kept.push_back(k);
+      } else {
+        result.dropped.push_back({result.images[images[k]], id,
+                                  is_kept ? "no image pair could verify it" : "inconsistent with the other images of the point"});
+      }
+    }
+    if (final_kept.size() < std::max<std::size_t>(o.min_track_length, 2)) {
+      for (std::size_t k : final_kept) {
+        result.dropped.push_back({result.images[images[k]], id, "track too short after verification"});
+      }
+      continue;
+    }
+    ++result.coded_tracks;
+    ++result.track_lengths[final_kept.size()];
+    for (std::size_t k : final_kept) {
+      const auto& p = data[images[k]].coded_px[data[images[k]].coded_index.at(id)];
+      result.tracks.push_back({id, result.images[images[k]], p.x(), p.y()});
+    }
+  }
+
+  // Natural-feature tracks: union-find over the verified matches, then the same vote.
+  if (!in.features.empty()) {
+    say("building feature tracks");
+    std::vector<MatchEdge> edges;
+    for (const auto& w : work) {
+      for (const auto& m : w.inlier_matches) {
+        edges.push_back({{static_cast<int>(w.report.a), m.a}, {static_cast<int>(w.report.b), m.b}, m.cost});
+      }
+    }
+    const auto tracks = build_tracks(std::move(edges), o.min_track_length, &result.feature_unions);
+    TrackId next_id = o.feature_track_offset;
+    for (const auto& t : tracks) {
+      auto pos = [&](std::size_t k) {
+        return data[static_cast<std::size_t>(t[k].image)].feature_ideal[static_cast<std::size_t>(t[k].feature)];
+      };
+      const auto kept = vote_track(t.size(), [&](std::size_t x, std::size_t y) {
+        return agree(static_cast<std::size_t>(t[x].image), pos(x), static_cast<std::size_t>(t[y].image), pos(y));
+      });
+      result.feature_observations_voted_out += t.size() - kept.size();
+      if (kept.size() < std::max<std::size_t>(o.min_track_length, 2)) continue;
+      const TrackId id = next_id++;
+      ++result.feature_tracks;
+      ++result.track_lengths[kept.size()];
+      for (std::size_t k : kept) {
+        const auto& kp = data[static_cast<std::size_t>(t[k].image)].features->keypoints[static_cast<std::size_t>(t[k].feature)];
+        result.tracks.push_back({id, result.images[static_cast<std::size_t>(t[k].image)], kp.x_px, kp.y_px});
+      }
+    }
+  }
+  std::stable_sort(result.tracks.begin(), result.tracks.end(), [&](const TrackObservation& x, const TrackObservation& y) {
+    if (x.track_id != y.track_id) return x.track_id < y.track_id;
+    return image_index.at(x.image) < image_index.at(y.image);
+  });
+  return result;
+}
+
+}  // namespace photomill::match

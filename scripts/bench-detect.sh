@@ -1,0 +1,61 @@
+#!/usr/bin/env bash
+# Speed and accuracy of detect (ArUco markers, SIFT features) and match on the demo set
+# (data/demo: 12 photos of 2000 x 1500), against the demo's truth. Usage:
+#   scripts/bench-detect.sh [build-dir]        (default: build; builds what it needs)
+# Wall times depend on what else runs on the machine: the load average is printed with them, and
+# the CPU time (user + sys) beside each wall time.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+build=${1:-build}
+runs=${PHOTOMILL_BENCH_RUNS:-3}
+cmake --build "$build" --target detect match detect_marker_check match_track_check -j"$(nproc)" >/dev/null
+bin=$build/bin
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+photos=(data/demo/part_*.jpg)
+dict=DICT_4X4_100  # the demo's part and plate markers (data/demo/scene.txt)
+
+# timed LABEL CMD...: runs CMD $runs times, prints the fastest wall time and its CPU time.
+timed() {
+  local label=$1 best="" cpu=""
+  shift
+  for _ in $(seq "$runs"); do
+    local start end
+    start=$(date +%s.%N)
+    /usr/bin/time -f "%U %S" -o "$work/time" "$@" 2>"$work/stderr" >/dev/null
+    end=$(date +%s.%N)
+    local wall
+    wall=$(echo "$end - $start" | bc)
+    if [ -z "$best" ] || [ "$(echo "$wall < $best" | bc)" = 1 ]; then
+      best=$wall
+      cpu=$(awk '{ print $1 + $2 }' "$work/time")
+    fi
+  done
+  printf '%-58s wall %6.2f s   cpu %6.2f s\n' "$label" "$best" "$cpu"
+}
+
+echo "machine: $(nproc) cores; load before: $(uptime | sed 's/.*load average/load average/')"
+echo
+echo "== speed (fastest of $runs runs, ${#photos[@]} photos of 2000 x 1500) =="
+timed "detect --aruco (markers, edge fit)" "$bin/detect" --aruco "$dict" "${photos[@]}" -o "$work/obs.csv"
+timed "detect --aruco --corner-refine subpix (OpenCV's)" "$bin/detect" --aruco "$dict" --corner-refine subpix \
+  "${photos[@]}" -o "$work/obs_subpix.csv"
+timed "detect --features (SIFT, 8000 per image)" "$bin/detect" --features "$work/feat_only" "${photos[@]}"
+timed "detect --aruco --features --mask-markers (one pass)" "$bin/detect" --aruco "$dict" --features "$work/feat" \
+  --mask-markers "${photos[@]}" -o "$work/obs.csv"
+timed "match (coded points only)" "$bin/match" "$work/obs.csv" --camera data/demo/camera.yaml -o "$work/tracks_coded.csv"
+timed "match (coded points + SIFT features)" "$bin/match" "$work/obs.csv" --features "$work/feat" \
+  --camera data/demo/camera.yaml -o "$work/tracks.csv"
+echo "load after: $(uptime | sed 's/.*load average/load average/')"
+
+echo
+echo "== marker corners against the true projections =="
+echo "-- edge fit (detect's default):"
+"$bin/detect_marker_check" "$work/obs.csv" --set data/demo
+echo "-- OpenCV's CORNER_REFINE_SUBPIX on the same photos:"
+"$bin/detect_marker_check" "$work/obs_subpix.csv" --set data/demo
+
+echo
+echo "== tracks against the true geometry =="
+"$bin/match" "$work/obs.csv" --features "$work/feat" --camera data/demo/camera.yaml -o /dev/null 2>&1 | sed 's/^/  /'
+"$bin/match_track_check" "$work/tracks.csv" --set data/demo
