@@ -8,7 +8,7 @@ bin=${1:-build/bin}
 out=${PHOTOMILL_DEMO_OUT:-out/demo}
 jobs=${PHOTOMILL_JOBS:-$(nproc)}
 
-# (Captured, not piped: with pipefail a stub's exit status 1 would decide a pipeline's.)
+# (Captured, not piped: under pipefail an unbuilt stage's exit status 1 would decide the pipeline's.)
 built() { local err; err=$("$bin/$1" 2>&1 >/dev/null </dev/null || true); [[ $err != *"not built yet"* ]]; }
 has_option() { local help; help=$("$bin/$1" --help 2>/dev/null || true); [[ $help == *"$2"* ]]; }
 
