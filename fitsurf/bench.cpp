@@ -1,10 +1,13 @@
 // fitsurf_bench: speed and accuracy figures of fitsurf's method on the analytic test shapes
 // (fitsurf/test_shapes.hpp), printed as a table for docs/fitsurf.md. Not a test: it asserts
 // nothing; scripts/bench-fitsurf.sh runs it with the machine load alongside.
-//   fitsurf_bench [--threads N] [--repeat R] [--quick]
+//   fitsurf_bench [--threads N] [--repeat R] [--quick] [--section speed|accuracy|outliers|robust|sparse]
 //   fitsurf_bench --write-cloud FILE.ply|FILE.xyz [--points N] [--shape NAME]   (input for CLI timing)
+//   fitsurf_bench --truth SAMPLES.xyz [--shape NAME]   (deviation of surface samples from the truth,
+//                                                      for scripts/bench-fitsurf-freecad.sh)
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <ctime>
 #include <cstdio>
 #include <cstring>
@@ -18,6 +21,7 @@
 #include "fitsurf/parallel.hpp"
 #include "fitsurf/report.hpp"
 #include "fitsurf/test_shapes.hpp"
+#include "formats/error.hpp"
 #include "formats/log.hpp"
 #include "formats/point_cloud.hpp"
 
@@ -73,19 +77,22 @@ test::TruthDeviation truth(const FitResult& fit, const test::Shape& s) {
 int main(int argc, char** argv) {
   int threads = 0, repeat = 3;
   bool quick = false;
-  std::string write_cloud, shape_name = "bumps";
+  std::string write_cloud, truth_samples, shape_name = "bumps", only;
   std::size_t points = 100000;
   for (int k = 1; k < argc; ++k) {
     if (!std::strcmp(argv[k], "--threads") && k + 1 < argc) threads = std::atoi(argv[++k]);
     else if (!std::strcmp(argv[k], "--repeat") && k + 1 < argc) repeat = std::max(1, std::atoi(argv[++k]));
     else if (!std::strcmp(argv[k], "--quick")) quick = true;
     else if (!std::strcmp(argv[k], "--write-cloud") && k + 1 < argc) write_cloud = argv[++k];
+    else if (!std::strcmp(argv[k], "--section") && k + 1 < argc) only = argv[++k];
+    else if (!std::strcmp(argv[k], "--truth") && k + 1 < argc) truth_samples = argv[++k];
     else if (!std::strcmp(argv[k], "--points") && k + 1 < argc) points = std::strtoull(argv[++k], nullptr, 10);
     else if (!std::strcmp(argv[k], "--shape") && k + 1 < argc) shape_name = argv[++k];
     else {
       std::fprintf(stderr,
-                   "usage: fitsurf_bench [--threads N] [--repeat R] [--quick]\n"
-                   "       fitsurf_bench --write-cloud FILE.ply|FILE.xyz [--points N] [--shape NAME]\n");
+                   "usage: fitsurf_bench [--threads N] [--repeat R] [--quick] [--section speed|accuracy|outliers|robust|sparse]\n"
+                   "       fitsurf_bench --write-cloud FILE.ply|FILE.xyz [--points N] [--shape NAME]\n"
+                   "       fitsurf_bench --truth SAMPLES.xyz [--shape NAME]\n");
       return 2;
     }
   }
@@ -100,11 +107,31 @@ int main(int argc, char** argv) {
     }
     return out ? 0 : 1;
   }
+  if (!truth_samples.empty()) {
+    // Points sampled on a fitted surface (by any program): their distance to the true shape,
+    // over the samples whose (x, y) lies inside the sampled rectangle (the data's extent; a
+    // surface's extrapolation beyond it is not judged). Prints "count rms_mm max_mm".
+    std::ifstream in(truth_samples);
+    const PointCloud c = read_xyz(in, truth_samples);
+    const test::Shape s = test::shape(shape_name);
+    double sum2 = 0, max_mm = 0;
+    std::size_t n = 0;
+    for (const auto& p : c.points_mm) {
+      if (p.x() < test::kXMin || p.x() > test::kXMax || p.y() < test::kYMin || p.y() > test::kYMax) continue;
+      const double d = test::distance_to_truth(s, p);
+      sum2 += d * d;
+      max_mm = std::max(max_mm, d);
+      ++n;
+    }
+    std::printf("%zu %.5f %.5f\n", n, n ? std::sqrt(sum2 / static_cast<double>(n)) : 0.0, max_mm);
+    return n ? 0 : 1;
+  }
+  const auto want = [&](const char* section) { return only.empty() || only == section; };
   log::set_level(log::Level::Quiet);
   std::printf("fitsurf_bench: %d worker threads (hardware: %d)\n\n", resolve_threads(threads), resolve_threads(0));
 
   // Speed 1: 1 000 000 points, 40x40 cubic, one pass (no parameter correction, no reweighting).
-  {
+  if (want("speed")) {
     const auto pts = test::sample(test::shape("bumps"), quick ? 200000 : 1000000, 0.01, 1);
     FitOptions o;
     o.poles_u = o.poles_v = 40;
@@ -123,7 +150,7 @@ int main(int argc, char** argv) {
   }
   // Speed 2: the whole default fit of 100 000 points (fitsurf's defaults: 30x30, parameter
   // correction, outline, fold check, statistics).
-  {
+  if (want("speed")) {
     const PointCloud cloud = cloud_of(test::sample(test::shape("bumps"), 100000, 0.01, 2));
     Options o;
     o.fit.threads = threads;
@@ -137,6 +164,7 @@ int main(int argc, char** argv) {
   // Accuracy: 100 000 points, noise 0.01 mm: plane projection alone and with parameter
   // correction, at 30x30 (the done-when net) on every shape, and at coarser nets, where the net
   // rather than the noise limits the accuracy, on the most curved (steep) and steepest (ridge).
+  if (want("accuracy")) {
   std::printf("\n%-8s %-6s %-22s %10s %10s %10s %7s %7s\n", "shape", "net", "method", "truth RMS", "truth max",
               "resid RMS", "rounds", "wall s");
   struct Case {
@@ -157,6 +185,7 @@ int main(int argc, char** argv) {
       o.fit.threads = threads;
       o.fit.poles_u = o.fit.poles_v = c.net;
       o.fit.parameter_correction = correction;
+      o.fit.robust = RobustLoss::None;  // the parameterisations alone (reweighting: --section robust)
       const auto t0 = Clock::now();
       const Result r = fit_point_cloud(cloud, o);
       const double t = seconds_since(t0);
@@ -167,8 +196,9 @@ int main(int argc, char** argv) {
                   r.fit.round_rms_mm.size(), t);
     }
   }
+  }
   // Outliers: 2 % of 100 000 points 0.5-5 mm off the surface; robust reweighting.
-  {
+  if (want("outliers")) {
     const test::Shape s = test::shape("bumps");
     auto pts = test::sample(s, 100000, 0.01, 25);
     test::Rng rng(26);
@@ -188,11 +218,54 @@ int main(int argc, char** argv) {
                   dev.rms_mm, dev.max_mm, r.fit.outliers, r.fit.round_rms_mm.size());
     }
   }
+  if (want("robust")) {
+  // Robust reweighting on or off by default: clean clouds and clouds with 1-5 % gross outliers
+  // (mismatched features: 1-5 mm off the surface, either side), dense (100 000 points) and
+  // SIFT-like (5 000 points), on bumps and the demo part; truth inside the outline.
+  std::printf("\n%-6s %7s %9s %-8s %10s %10s %9s %10s %7s\n", "shape", "points", "outliers", "robust", "truth RMS",
+              "truth max", "flagged", "resid RMS", "wall s");
+  for (const char* name : {"bumps", "demo"}) {
+    const test::Shape s = test::shape(name);
+    for (std::size_t n : {std::size_t{100000}, std::size_t{5000}}) {
+      for (double fraction : {0.0, 0.01, 0.05}) {
+        auto pts = test::sample(s, n, 0.01, 31);
+        test::Rng rng(32);
+        std::size_t injected = 0;
+        for (std::size_t k = 0; k < pts.size(); ++k) {
+          if (rng.uniform() >= fraction) continue;
+          pts[k].z() += (rng.uniform() < 0.5 ? -1 : 1) * rng.uniform(1.0, 5.0);
+          ++injected;
+        }
+        const PointCloud cloud = cloud_of(pts);
+        for (RobustLoss loss : {RobustLoss::None, RobustLoss::Reject, RobustLoss::Tukey}) {
+          Options o;
+          o.fit.threads = threads;
+          o.fit.robust = loss;
+          o.fit.fold.max_slope_deg = 90;  // measure, do not refuse
+          const auto t0 = Clock::now();
+          Result r;
+          try {
+            r = fit_point_cloud(cloud, o);
+          } catch (const GeometryError&) {  // the surface curls over (outliers at the edge)
+            std::printf("%-6s %7zu %9zu %-8s %10s %10s %9s %10s %7.3f\n", name, n, injected, to_string(loss).c_str(),
+                        "folds", "-", "-", "-", seconds_since(t0));
+            continue;
+          }
+          const double t = seconds_since(t0);
+          const auto dev = truth(r.fit, s);
+          std::printf("%-6s %7zu %9zu %-8s %10.5f %10.5f %9zu %10.5f %7.3f\n", name, n, injected, to_string(loss).c_str(),
+                      dev.rms_mm, dev.max_mm, r.fit.outliers, r.stats.rms_mm, t);
+        }
+      }
+    }
+  }
+  }
+  if (want("sparse")) {
   // Sparse marker-like points: a jittered grid (15x10: 10 mm apart; 30x20: 5 mm), noise
   // 0.01 mm, the default smoothing or --noise-mm 0.01; deviation and curvature inside the
   // points' hull.
-  std::printf("\n%-8s %6s %-16s %9s %10s %10s %9s %9s %6s\n", "shape", "points", "smoothing", "lambda", "truth RMS",
-              "truth max", "max curv", "true curv", "ratio");
+  std::printf("\n%-8s %6s %-16s %9s %10s %10s %9s %9s %6s %9s\n", "shape", "points", "smoothing", "lambda", "truth RMS",
+              "truth max", "max curv", "true curv", "ratio", "TPS max");
   for (const auto& s : test::shapes()) {
     for (int nx : {15, 30}) {
       const PointCloud cloud = cloud_of(test::sample_grid(s, nx, nx * 2 / 3, 45.0 / nx, 0.01, 4));
@@ -203,11 +276,26 @@ int main(int argc, char** argv) {
         o.fit.fold.max_slope_deg = 90;  // report, do not refuse
         const Result r = fit_point_cloud(cloud, o);
         const auto dev = truth(r.fit, s);
-        std::printf("%-8s %6zu %-16s %9.3g %10.5f %10.5f %9.5f %9.5f %6.2f\n", s.name.c_str(), cloud.points_mm.size(),
+        // The thin-plate spline interpolant of the same points: its largest distance from the truth
+        // over the same (x, y) samples inside the outline. It passes through the same markers, so
+        // no fit can be within half of this of both it and the truth: the information limit.
+        const auto tps = test::thin_plate_interpolant(cloud.points_mm);
+        double tps_max = 0;
+        const auto& b = r.fit.surface.boundary_uv;
+        for (int a = 0; a < 150; ++a) {
+          for (int c = 0; c < 150; ++c) {
+            const Eigen::Vector2d uv((a + 0.5) / 150, (c + 0.5) / 150);
+            if (!b.empty() && !point_in_polygon(b, uv)) continue;
+            const Eigen::Vector3d x = surface_point(r.fit.surface, uv.x(), uv.y());
+            tps_max = std::max(tps_max, test::distance_to_truth(s, Eigen::Vector3d(x.x(), x.y(), tps(x.x(), x.y()))));
+          }
+        }
+        std::printf("%-8s %6zu %-16s %9.3g %10.5f %10.5f %9.5f %9.5f %6.2f %9.5f\n", s.name.c_str(), cloud.points_mm.size(),
                     noise > 0 ? "--noise-mm 0.01" : "default", r.fit.smoothing_mm4, dev.rms_mm, dev.max_mm,
-                    dev.max_curvature, dev.true_max_curvature, dev.max_curvature / dev.true_max_curvature);
+                    dev.max_curvature, dev.true_max_curvature, dev.max_curvature / dev.true_max_curvature, tps_max);
       }
     }
+  }
   }
   return 0;
 }

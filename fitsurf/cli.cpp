@@ -6,6 +6,7 @@
 #include <set>
 
 #include "fitsurf/mesh.hpp"
+#include "fitsurf/preview.hpp"
 #include "fitsurf/report.hpp"
 #include "formats/cad.hpp"
 #include "formats/error.hpp"
@@ -31,6 +32,12 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--residuals", c.residuals,
                  "Write the fitted points as PLY with scalar fields residual_mm (signed distance) and weight")
       ->group(out);
+  app.add_option("--preview", c.preview,
+                 "Write a PNG view of the fit along the plane normal: the shaded surface and the points coloured "
+                 "by residual, with a colour bar in mm")
+      ->group(out);
+  app.add_option("--preview-width-px", c.preview_width_px, "Width of --preview; the height follows the part")
+      ->capture_default_str()->check(CLI::Range(400, 8000))->group(out);
 
   const std::string sel = "Selecting the part";
   app.add_option("--keep-box", c.keep_box, "Keep only points inside XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (mm)")
@@ -80,8 +87,8 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--min-gain", f.min_rms_gain, "Stop when a round lowers the RMS by less than this fraction")
       ->capture_default_str()->group(slv);
   app.add_option("--robust", c.robust,
-                 "Outliers, judged against their neighbours: none, reject (weight 0 beyond the cutoff), huber, "
-                 "tukey (IRLS weights); use one for clouds with outliers")
+                 "Outliers, judged against their neighbours: reject (weight 0 beyond the cutoff), huber, tukey "
+                 "(IRLS weights), or none (for noise-free data)")
       ->capture_default_str()->check(CLI::IsMember({"none", "reject", "huber", "tukey"}))->group(slv);
   app.add_option("--robust-threshold", f.robust_threshold,
                  "Cutoff in robust standard deviations (0 = 5 for reject, 1.345 for huber, 4.685 for tukey)")
@@ -162,7 +169,7 @@ Options to_options(const Cli& c) {
   validate(o.fit);
   // Every file output distinct, and only -o on stdout.
   std::set<std::string> paths;
-  for (const std::string* p : {&c.step, &c.iges, &c.mesh, &c.report, &c.residuals, &c.output}) {
+  for (const std::string* p : {&c.step, &c.iges, &c.mesh, &c.report, &c.residuals, &c.preview, &c.output}) {
     if (p->empty() || (p == &c.output && *p == "-")) continue;
     if (*p == "-") throw UsageError("only -o may write to stdout ('-'); give the other outputs file names");
     if (!paths.insert(*p).second) throw UsageError("'" + *p + "' is named for two outputs");
@@ -188,6 +195,15 @@ void write_outputs(const Cli& c, const Options& options, const PointCloud& cloud
   if (!c.residuals.empty()) {
     write_ply(file(c.residuals).stream(), residual_cloud(cloud, result), PlyEncoding::BinaryLittleEndian,
               "fitsurf residuals: residual_mm = signed distance to the surface, weight = robust weight");
+  }
+  if (!c.preview.empty()) {
+    std::vector<Eigen::Vector3d> fitted;
+    fitted.reserve(result.selection.kept.size());
+    for (std::size_t k : result.selection.kept) fitted.push_back(cloud.points_mm[k]);
+    PreviewOptions po;
+    po.width_px = c.preview_width_px;
+    const std::vector<std::uint8_t> png = render_preview_png(result, fitted, po);
+    file(c.preview).stream().write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
   }
   tool::OutputFile surface_out(c.output);
   if (!surface_out.is_stdout()) write_surface(surface_out.stream(), surface);

@@ -17,10 +17,11 @@ struct Cli {
   Options options;               // filled directly by most options
   std::string input = "-";
   std::string output = "-";      // surface text
-  std::string step, iges, mesh, report, residuals;  // empty: not written
+  std::string step, iges, mesh, report, residuals, preview;  // empty: not written
+  int preview_width_px = 1200;
   double mesh_step_mm = 1.0;
   std::string net = "30x30";
-  std::string knots = "uniform", plane = "pca", solver = "ldlt", robust = "none", outline = "auto";
+  std::string knots = "uniform", plane = "pca", solver = "ldlt", robust = "reject", outline = "auto";
   bool no_correction = false;
   std::vector<double> keep_box, keep_above;
   double tolerance_mm = 0;       // 0: fixed net

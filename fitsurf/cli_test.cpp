@@ -7,6 +7,10 @@
 
 #include <gtest/gtest.h>
 
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "fitsurf/preview.hpp"
 #include "fitsurf/test_shapes.hpp"
 #include "formats/cad.hpp"
 #include "formats/point_cloud.hpp"
@@ -142,6 +146,91 @@ TEST(FitsurfCli, AFailureLeavesNoFile) {
                                 "1 2 3\n4 5 6\n7 8 10\n");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_TRUE(std::filesystem::is_empty(dir.path())) << "no output and no temporary file";
+}
+
+// --preview (issue #9): a PNG of the size preview_size_px gives for the part's extent (read from
+// the report), showing the shaded surface (grey) and points coloured by residual on both sides
+// (red above, blue below).
+struct PreviewCase {
+  std::string name;
+  std::size_t points;
+  std::vector<std::string> args;
+};
+
+void PrintTo(const PreviewCase& c, std::ostream* os) { *os << c.name; }
+
+class FitsurfPreview : public ::testing::TestWithParam<PreviewCase> {};
+
+double json_number(const std::string& json, const std::string& key) {
+  const auto at = json.find("\"" + key + "\":");
+  if (at == std::string::npos) return std::nan("");
+  return std::stod(json.substr(at + key.size() + 3));
+}
+
+TEST_P(FitsurfPreview, WritesAPngOfTheExpectedSize) {
+  const PreviewCase& c = GetParam();
+  TempDir dir;
+  const auto p = [&](const char* name) { return (dir.path() / name).string(); };
+  const std::string points =
+      c.points >= 2000 ? dome_points(c.points)
+                       : xyz_text(fitsurf::test::sample_grid(fitsurf::test::shape("dome"), 15, 10, 3.0, 0.01, 43));
+  std::vector<std::string> args = {"-", "-o", p("s.surf"), "--report", p("r.json"), "--preview", p("view.png")};
+  args.insert(args.end(), c.args.begin(), c.args.end());
+  const ToolResult r = run_tool("fitsurf", args, points);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string report = photomill::test::read_file(p("r.json"));
+  PreviewOptions o;
+  for (std::size_t k = 0; k + 1 < c.args.size(); ++k) {
+    if (c.args[k] == "--preview-width-px") o.width_px = std::stoi(c.args[k + 1]);
+  }
+  const Eigen::Vector2i size = preview_size_px(json_number(report, "extent_u_mm"), json_number(report, "extent_v_mm"), o);
+  const std::string png = photomill::test::read_file(p("view.png"));
+  ASSERT_GT(png.size(), 24u);
+  EXPECT_EQ(png.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+  const auto be32 = [&](std::size_t at) {
+    return (static_cast<std::uint32_t>(static_cast<unsigned char>(png[at])) << 24) |
+           (static_cast<std::uint32_t>(static_cast<unsigned char>(png[at + 1])) << 16) |
+           (static_cast<std::uint32_t>(static_cast<unsigned char>(png[at + 2])) << 8) |
+           static_cast<std::uint32_t>(static_cast<unsigned char>(png[at + 3]));
+  };
+  EXPECT_EQ(png.substr(12, 4), "IHDR");
+  EXPECT_EQ(be32(16), static_cast<std::uint32_t>(size.x()));
+  EXPECT_EQ(be32(20), static_cast<std::uint32_t>(size.y()));
+  EXPECT_EQ(size.x(), o.width_px);
+  // Count the colours: grey surface, red (above) and blue (below) dots.
+  const cv::Mat img = cv::imdecode(cv::Mat(1, static_cast<int>(png.size()), CV_8UC1, const_cast<char*>(png.data())),
+                                   cv::IMREAD_COLOR);
+  ASSERT_EQ(img.cols, size.x());
+  ASSERT_EQ(img.rows, size.y());
+  std::size_t grey = 0, red = 0, blue = 0;
+  for (int y = 0; y < img.rows; ++y) {
+    for (int x = 0; x < img.cols; ++x) {
+      const cv::Vec3b v = img.at<cv::Vec3b>(y, x);  // BGR
+      if (v[0] == v[1] && v[1] == v[2] && v[0] > 90 && v[0] < 240) ++grey;
+      if (v[2] > v[0] + 60) ++red;
+      if (v[0] > v[2] + 60) ++blue;
+    }
+  }
+  const double area = static_cast<double>(img.rows) * img.cols;
+  EXPECT_GT(grey, 0.3 * area) << "the surface covers most of the plot";
+  EXPECT_GT(red, 50u);
+  EXPECT_GT(blue, 50u);
+}
+
+INSTANTIATE_TEST_SUITE_P(Cases, FitsurfPreview,
+                         ::testing::Values(PreviewCase{"dense_default_width", 20000, {}},
+                                           PreviewCase{"dense_narrow", 5000, {"--preview-width-px", "640"}},
+                                           PreviewCase{"markers", 150, {"--preview-width-px", "900"}}),
+                         [](const auto& info) { return info.param.name; });
+
+TEST(FitsurfCli, APreviewIsNotWrittenOnFailure) {
+  TempDir dir;
+  const auto png = (dir.path() / "view.png").string();
+  std::string collinear;
+  for (int k = 0; k < 100; ++k) collinear += std::to_string(k) + " " + std::to_string(2 * k) + " 30\n";
+  EXPECT_EQ(run_tool("fitsurf", {"-", "--preview", png}, collinear).exit_code, 1);
+  EXPECT_EQ(run_tool("fitsurf", {"-", "--preview", png, "--preview-width-px", "10"}, dome_points(500)).exit_code, 2);
+  EXPECT_TRUE(std::filesystem::is_empty(dir.path())) << "no preview and no temporary file";
 }
 
 // Done-when: STEP and IGES written by fitsurf reopen with identical poles and knots; Open CASCADE

@@ -446,6 +446,11 @@ FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptio
   // RMS of the previous round's residuals under the weights of this round's fit: with the weights
   // fixed, refitting and then projecting can only lower it, so the gain measures convergence.
   double previous = std::numeric_limits<double>::infinity();
+  // The first weighting restarts from the plane parameters: outliers (near the edge of the data
+  // most) can curl the unweighted first fit so far that projecting onto it scrambles the
+  // parameters of the points there, which no reweighting repairs (docs/fitsurf.md, figures).
+  const std::vector<Eigen::Vector2d> plane_uv = reweight && o.parameter_correction ? uv : std::vector<Eigen::Vector2d>{};
+  bool weighted = false;
   for (int round = 0; round < o.max_rounds; ++round) {
     r.local_surface = make_surface(space, solver.solve(uv, local, w));
     r.uv = uv;
@@ -474,6 +479,11 @@ FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptio
     if (rms >= previous * (1 - o.min_rms_gain) && !weights_changed) break;
     previous = weighted_rms(d, w);
     if (o.parameter_correction) uv = r.uv;
+    if (weights_changed && !weighted && !plane_uv.empty()) {
+      weighted = true;
+      uv = plane_uv;
+      previous = std::numeric_limits<double>::infinity();
+    }
   }
   r.residual_mm = std::move(d);
   if (!o.parameter_correction && o.final_projection) {

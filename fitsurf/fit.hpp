@@ -18,9 +18,11 @@
 //      s_k instead of being taken for outliers; an isolated outlier keeps its residual.
 //      "reject" (iterative k-sigma rejection, as in geodetic data snooping) w = 1 for
 //      |e_k| <= c_k else 0; Huber w = min(1, c_k/|e_k|); Tukey biweight w = (1 - (e_k/c_k)^2)^2
-//      for |e_k| < c_k, else 0. Off by default: on clean data any reweighting loses accuracy
-//      where the net cannot quite follow the shape (docs/fitsurf.md); reweighting starts after
-//      the first parameter correction;
+//      for |e_k| < c_k, else 0. "reject" by default: on clean noisy data it gives the same surface
+//      as no reweighting, and it removes 1-5 % gross outliers (docs/fitsurf.md, figures);
+//      reweighting starts after the first parameter correction, and the first weighting restarts
+//      from the plane parameters (an unweighted fit curled by outliers scrambles the foot points
+//      of the points near it);
 //   5. repeat 3-4 until a round lowers the weighted RMS by less than min_rms_gain (relative, with
 //      the weights held fixed, under which it can only decrease) and no weight changes by more
 //      than weight_tolerance, or max_rounds; the last round is the result.
@@ -80,7 +82,7 @@ struct FitOptions {
   // Without parameter correction: still project every point onto the final surface so residuals
   // are orthogonal distances (false: residuals |Q - S(u,v)| at the plane parameters, faster).
   bool final_projection = true;
-  RobustLoss robust = RobustLoss::None;
+  RobustLoss robust = RobustLoss::Reject;
   double robust_threshold = 0;        // c / sigma; 0 = the loss's usual constant (reject 5, Huber 1.345, Tukey 4.685)
   // Floor of sigma: residuals below threshold x this are never outliers, so that exact or nearly
   // exact data do not lose the points where the net cannot follow the shape (reject: 0.1 mm).

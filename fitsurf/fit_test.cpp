@@ -74,6 +74,10 @@ TEST_P(Correction, BeatsPlaneProjectionWhereTheNetLimits) {
   const PointCloud cloud = cloud_of(test::sample(shape, 100000, 0.01, 22));
   Options o;
   o.fit.poles_u = o.fit.poles_v = GetParam().net;
+  // The two parameterisations alone, without reweighting (which, where the net cannot follow the
+  // shape, flags a few clean points: ridge 20x20 with the default reject, 0.00317 -> 0.00291 mm,
+  // docs/fitsurf.md).
+  o.fit.robust = RobustLoss::None;
   o.fit.parameter_correction = false;
   const Result plane = fit_point_cloud(cloud, o);
   o.fit.parameter_correction = true;
@@ -141,6 +145,59 @@ TEST_F(FitsurfFit, SparseErrorIsSampling) {
   // Halving the spacing divides the interpolation error by about 4 (second order).
   EXPECT_LT(fine.max_mm, 0.4 * coarse.max_mm) << coarse.max_mm << " -> " << fine.max_mm;
   EXPECT_LE(fine.max_mm, 0.1);
+}
+
+// Where the 0.1 mm bound is not met with 150 markers, the samples do not determine the surface to
+// that: the thin-plate spline interpolant of the same points (the least-bending surface through
+// them, a smooth plausible part with identical marker positions) lies more than 0.2 mm from the
+// truth, so no fit can be within 0.1 mm of both. fitsurf's fit is about as close to the truth as
+// that interpolant (figures in docs/fitsurf.md; the same points as fitsurf_bench's sparse table).
+class SparseLimit : public FitsurfFit, public ::testing::WithParamInterface<std::string> {};
+
+TEST_P(SparseLimit, SamplesCannotPinTheSurfaceTo100Micrometres) {
+  const test::Shape shape = test::shape(GetParam());
+  const PointCloud cloud = cloud_of(test::sample_grid(shape, 15, 10, 3.0, 0.01, 4));
+  Options o;
+  o.fit.fold.max_slope_deg = 90;  // as the benchmark: measure, do not refuse
+  const Result r = fit_point_cloud(cloud, o);
+  const auto tps = test::thin_plate_interpolant(cloud.points_mm);
+  double tps_max = 0;
+  const auto& b = r.fit.surface.boundary_uv;
+  for (int i = 0; i < 120; ++i) {
+    for (int j = 0; j < 120; ++j) {
+      const Eigen::Vector2d uv((i + 0.5) / 120, (j + 0.5) / 120);
+      if (!point_in_polygon(b, uv)) continue;
+      const Eigen::Vector3d x = surface_point(r.fit.surface, uv.x(), uv.y());
+      tps_max = std::max(tps_max, test::distance_to_truth(shape, Eigen::Vector3d(x.x(), x.y(), tps(x.x(), x.y()))));
+    }
+  }
+  const auto dev = truth(r.fit.surface, shape);
+  EXPECT_GT(tps_max, 0.2) << "two surfaces through the same markers differ by more than twice the bound";
+  EXPECT_LT(dev.max_mm, 1.3 * tps_max) << "fit " << dev.max_mm << " mm, thin-plate interpolant " << tps_max << " mm";
+}
+
+INSTANTIATE_TEST_SUITE_P(Shapes, SparseLimit, ::testing::Values("wave", "steep", "ridge", "demo"));
+
+// Robust reweighting is on by default (--robust reject): a cloud with 1 % gross outliers (mismatched
+// features 1-5 mm off) is fitted as if they were absent; a plain fit is pulled by over 1 mm.
+TEST_F(FitsurfFit, DefaultRejectsGrossOutliers) {
+  const test::Shape shape = test::shape("bumps");
+  auto pts = test::sample(shape, 30000, 0.01, 37);
+  test::Rng rng(38);
+  for (std::size_t k = 0; k < pts.size(); k += 100) pts[k].z() += (k % 200 ? 1 : -1) * rng.uniform(1.0, 5.0);
+  Options o;
+  EXPECT_EQ(o.fit.robust, RobustLoss::Reject);
+  o.fit.fold.max_slope_deg = 90;  // the plain fit may curl at the edge: measure it
+  const auto robust = truth(fit_point_cloud(cloud_of(pts), o).fit.surface, shape);
+  o.fit.robust = RobustLoss::None;
+  const auto clean = truth(fit_point_cloud(cloud_of(test::sample(shape, 30000, 0.01, 37)), o).fit.surface, shape);
+  EXPECT_LE(robust.max_mm, 1.5 * clean.max_mm) << "robust " << robust.max_mm << ", clean " << clean.max_mm;
+  try {
+    const auto plain = truth(fit_point_cloud(cloud_of(pts), o).fit.surface, shape);
+    EXPECT_GT(plain.max_mm, 10 * robust.max_mm);
+  } catch (const GeometryError&) {
+    SUCCEED() << "the plain fit curls over at the edge";
+  }
 }
 
 // Robust reweighting: 2 % of the points are outliers 0.5-5 mm off the surface.

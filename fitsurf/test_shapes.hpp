@@ -15,6 +15,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 
 #include "formats/bspline.hpp"
 
@@ -49,6 +50,18 @@ inline std::vector<Shape> shapes() {
       // The steepest: a cylindrical ridge of radius 52 mm along x, 14-52 mm high, its sides 74
       // degrees steep at y = +-50 (where projection onto a plane compresses the data most).
       {"ridge", [](double, double y) { return std::sqrt(52.0 * 52.0 - y * y); }},
+      // The demo part (data/demo: synth --shape bumps, 30 mm high, scene.txt's terms verbatim):
+      // h = w f, f = base + four Gaussians (one a dip), w = S(dx/20) S(dy/20), S(t) = 6t^5 - 15t^4
+      // + 10t^3 (1 beyond t = 1), dx, dy the distances to the nearest x and y edge
+      // (tests/synth/height_field.hpp): it meets the plate tangentially, with 50-70 degree flanks.
+      {"demo",
+       [](double x, double y) {
+         const auto S = [](double t) { return t >= 1 ? 1.0 : t <= 0 ? 0.0 : t * t * t * (10 + t * (-15 + 6 * t)); };
+         const double w = S((75 - std::abs(x)) / 20) * S((50 - std::abs(y)) / 20);
+         return w * (13.4994200692133 + 16.499291195705148 * gauss(x, y, -27, 10, 21, 20) +
+                     10.499548942721455 * gauss(x, y, 33, -12, 15, 15) + 7.499677816229611 * gauss(x, y, 7.5, -28, 12, 10) -
+                     4.499806689737767 * gauss(x, y, 30, 22, 10.5, 9));
+       }},
   };
 }
 
@@ -153,6 +166,34 @@ inline double distance_to_truth(const Shape& s, const Eigen::Vector3d& x) {
   Eigen::Matrix2d H;
   derivatives(s, x.x(), x.y(), g, H);
   return std::abs(x.z() - s.f(x.x(), x.y())) / std::sqrt(1 + g.squaredNorm());
+}
+
+// The thin-plate spline interpolant of scattered heights (Duchon 1977): z(x, y) = a0 + a1 x + a2 y
+// + sum_i c_i phi(|(x, y) - (x_i, y_i)|), phi(r) = r^2 log r, with sum c_i = sum c_i x_i =
+// sum c_i y_i = 0; among all surfaces through the points it has the least thin-plate energy
+// (the quantity fitsurf's smoothing penalises). A yardstick for sparse fits: it shows how far a
+// smooth, plausible surface through the same samples can lie from the truth. Dense (n + 3)^2 solve:
+// for up to a few thousand points.
+inline std::function<double(double, double)> thin_plate_interpolant(const std::vector<Eigen::Vector3d>& pts) {
+  const int n = static_cast<int>(pts.size());
+  const auto phi = [](double r2) { return r2 > 0 ? 0.5 * r2 * std::log(r2) : 0.0; };  // r^2 log r
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n + 3, n + 3);
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(n + 3);
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) A(i, j) = phi((pts[i].head<2>() - pts[j].head<2>()).squaredNorm());
+    A(i, n) = A(n, i) = 1;
+    A(i, n + 1) = A(n + 1, i) = pts[i].x();
+    A(i, n + 2) = A(n + 2, i) = pts[i].y();
+    b(i) = pts[i].z();
+  }
+  const Eigen::VectorXd c = A.partialPivLu().solve(b);
+  std::vector<Eigen::Vector2d> xy(pts.size());
+  for (std::size_t i = 0; i < pts.size(); ++i) xy[i] = pts[i].head<2>();
+  return [c, xy, phi, n](double x, double y) {
+    double z = c(n) + c(n + 1) * x + c(n + 2) * y;
+    for (int i = 0; i < n; ++i) z += c(i) * phi((Eigen::Vector2d(x, y) - xy[static_cast<std::size_t>(i)]).squaredNorm());
+    return z;
+  };
 }
 
 struct TruthDeviation {
