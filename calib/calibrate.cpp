@@ -18,6 +18,7 @@
 
 #include "calib/init.hpp"
 #include "formats/error.hpp"
+#include "formats/image.hpp"
 
 namespace photomill::calib {
 namespace {
@@ -383,8 +384,12 @@ std::optional<cv::Size> image_size_from_files(const std::vector<Observation>& ob
   std::map<std::string, bool> seen;
   for (const auto& o : observations) {
     if (!seen.emplace(o.image, true).second) continue;
+    // Images that are not here (the observations came from elsewhere): the size must be given.
+    // Images that are here but broken: say which and why (no OpenCV warning on stderr).
+    if (!image_file_exists(o.image)) return std::nullopt;
+    check_image_file(o.image);
     const cv::Mat img = cv::imread(o.image, cv::IMREAD_UNCHANGED);
-    if (img.empty()) return std::nullopt;
+    if (img.empty()) throw InputError(o.image, 0, "not a readable image");
     if (!size) {
       size = img.size();
       first = o.image;

@@ -2,6 +2,7 @@
 #include "calib/cli.hpp"
 
 #include <map>
+#include <set>
 
 #include "detect/boards.hpp"
 #include "formats/error.hpp"
@@ -102,6 +103,24 @@ std::vector<ControlPoint> load_control(const CalibCli& c) {
     throw UsageError("give the control points: --control FILE, --chessboard COLSxROWS or --charuco COLSxROWS");
   }
   return detect::board_control_points(spec);
+}
+
+void check_observations(const CalibCli& c, const std::vector<Observation>& observations,
+                        const std::vector<ControlPoint>& control) {
+  std::string sources;
+  for (const auto& p : c.observations) sources += (sources.empty() ? "" : ", ") + tool::source_name(p);
+  if (observations.empty()) throw InputError(sources, 0, "no observations: the input holds only a header");
+  std::set<PointId> ids;
+  for (const auto& p : control) ids.insert(p.point_id);
+  for (const auto& o : observations) {
+    if (ids.count(o.point_id)) return;
+  }
+  std::string of;
+  for (const auto& p : c.control) of += (of.empty() ? " in " : ", ") + tool::source_name(p);
+  if (of.empty()) of = !c.chessboard.empty() ? " of the --chessboard board" : " of the --charuco board";
+  throw InputError(sources, 0,
+                   "no observation refers to a control point (" + std::to_string(observations.size()) + " observations, " +
+                       std::to_string(control.size()) + " control points" + of + "): check the point ids");
 }
 
 cv::Size resolve_image_size(const CalibCli& c, const std::vector<Observation>& observations) {

@@ -35,6 +35,11 @@ CalibOptions to_options(const CalibCli& cli);
 // The control points: the CSVs of --control, or the board of --chessboard/--charuco.
 std::vector<ControlPoint> load_control(const CalibCli& cli);
 
+// Throws InputError naming the observation source(s) if they hold no observation, or none that
+// refers to a control point (docs/errors.md).
+void check_observations(const CalibCli& cli, const std::vector<Observation>& observations,
+                        const std::vector<ControlPoint>& control);
+
 // --image-size, else the size of the images named in the observations; throws UsageError if
 // neither is available.
 cv::Size resolve_image_size(const CalibCli& cli, const std::vector<Observation>& observations);

@@ -27,6 +27,7 @@ int main(int argc, char** argv) {
           auto part = read_observations(*in, tool::source_name(path));
           observations.insert(observations.end(), part.begin(), part.end());
         }
+        calib::check_observations(cli, observations, control);
         const cv::Size size = calib::resolve_image_size(cli, observations);
 
         const calib::CalibResult result = calib::calibrate(observations, control, size, options);

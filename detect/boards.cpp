@@ -6,6 +6,7 @@
 #include <cmath>
 #include <exception>
 #include <mutex>
+#include <set>
 #include <thread>
 
 #include <opencv2/aruco/charuco.hpp>
@@ -14,6 +15,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "formats/error.hpp"
+#include "formats/image.hpp"
 
 namespace photomill::detect {
 namespace {
@@ -175,10 +177,18 @@ std::vector<std::string> expand_image_arguments(const std::vector<std::string>& 
       images.push_back(a);
       continue;
     }
+    bool first = true;
     for (std::string line; std::getline(list, line);) {
+      if (first && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);  // a UTF-8 byte-order mark
+      first = false;
       if (!line.empty() && line.back() == '\r') line.pop_back();
       if (!line.empty() && line[0] != '#') images.push_back(line);
     }
+  }
+  // The same photo twice would give every point twice in one image, which no stage accepts.
+  std::set<std::string> seen;
+  for (const auto& image : images) {
+    if (!seen.insert(image).second) throw InputError(image, 0, "named twice: give each image once");
   }
   return images;
 }
@@ -208,7 +218,8 @@ ImageDetection detect_board(const cv::Mat& grey, const std::string& image_name, 
 
 std::vector<ImageDetection> detect_boards(const std::vector<std::string>& images, const BoardSpec& spec,
                                           const BoardDetectOptions& options,
-                                          const std::function<void(const ImageDetection&)>& on_image) {
+                                          const std::function<void(const ImageDetection&)>& on_image,
+                                          const BoardImageHook& on_pixels) {
   validate_board(spec);
   std::vector<ImageDetection> results(images.size());
   std::vector<std::exception_ptr> errors(images.size());
@@ -217,9 +228,11 @@ std::vector<ImageDetection> detect_boards(const std::vector<std::string>& images
   auto worker = [&] {
     for (std::size_t i = next++; i < images.size(); i = next++) {
       try {
+        check_image_file(images[i]);
         const cv::Mat grey = cv::imread(images[i], cv::IMREAD_GRAYSCALE);
-        if (grey.empty()) throw InputError(images[i], 0, "cannot read image (missing, or not an image)");
+        if (grey.empty()) throw InputError(images[i], 0, "not a readable image");
         results[i] = detect_board(grey, images[i], spec, options);
+        if (on_pixels) on_pixels(grey, results[i]);
         if (on_image) {
           const std::lock_guard<std::mutex> lock(report_mutex);
           on_image(results[i]);

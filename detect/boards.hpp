@@ -79,7 +79,8 @@ struct ImageDetection {
 };
 
 // Image arguments as given on a command line, "-" standing for a list of image paths read from
-// `list`, one per line (blank lines and lines starting with '#' skipped). Shared by every mode.
+// `list`, one per line (blank lines and lines starting with '#' skipped; CRLF and a UTF-8 BOM
+// accepted). Shared by every mode. Throws InputError for an image named twice.
 std::vector<std::string> expand_image_arguments(const std::vector<std::string>& args, std::istream& list);
 
 // One line for a person: "left01.jpg: found, 54 corners" (+ markers, dropped corners).
@@ -89,11 +90,17 @@ std::string describe(const ImageDetection& detection);
 ImageDetection detect_board(const cv::Mat& grey, const std::string& image_name, const BoardSpec& spec,
                             const BoardDetectOptions& options);
 
+// Called from the worker threads, in parallel (not serialised), with each image as read (grey)
+// and its detection: for work on the pixels such as drawings (draw.hpp).
+using BoardImageHook = std::function<void(const cv::Mat& grey, const ImageDetection& detection)>;
+
 // Reads and processes every image (in parallel), results in the order of `images`. Calls
-// `on_image` (serialised, from worker threads) as each image finishes, for progress reports.
-// Throws InputError(path, 0, ...) for an image that cannot be read.
+// `on_image` (serialised, from worker threads) as each image finishes, for progress reports,
+// after `on_pixels`. Throws InputError(path, 0, ...) for an image that cannot be read, or what
+// `on_pixels` throws.
 std::vector<ImageDetection> detect_boards(const std::vector<std::string>& images, const BoardSpec& spec,
                                           const BoardDetectOptions& options,
-                                          const std::function<void(const ImageDetection&)>& on_image = {});
+                                          const std::function<void(const ImageDetection&)>& on_image = {},
+                                          const BoardImageHook& on_pixels = {});
 
 }  // namespace photomill::detect

@@ -1,10 +1,12 @@
 // detect: images -> observations CSV (image,point_id,u_px,v_px) of calibration-board corners, or
 // with --print-board the board's control points CSV; or ArUco marker corners and/or SIFT feature
 // files (options and run in photo_cli.hpp). One mode per run. Per-image results go to stderr.
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "detect/boards.hpp"
+#include "detect/draw.hpp"
 #include "detect/photo_cli.hpp"
 #include "formats/error.hpp"
 #include "formats/log.hpp"
@@ -15,8 +17,10 @@ namespace {
 using namespace photomill;
 
 void run_boards(detect::BoardSpec spec, const detect::BoardDetectOptions& options,
-                const std::vector<std::string>& image_args, bool print_board, const std::string& output) {
+                const std::vector<std::string>& image_args, bool print_board, const std::string& output,
+                const detect::DrawOptions& draw) {
   detect::validate_board(spec);
+  if (print_board && !draw.dir.empty()) throw UsageError("--draw needs images, not --print-board");
   tool::OutputFile out(output);
   if (print_board) {
     write_control_points(out.stream(), detect::board_control_points(spec));
@@ -25,8 +29,16 @@ void run_boards(detect::BoardSpec spec, const detect::BoardDetectOptions& option
   }
   const auto images = detect::expand_image_arguments(image_args, *tool::open_input("-"));
   if (images.empty()) throw UsageError("no images given");
-  const auto results = detect::detect_boards(images, spec, options,
-                                             [](const detect::ImageDetection& r) { log::info(detect::describe(r)); });
+  std::optional<detect::DrawingFiles> drawings;  // removes its pictures again unless the run succeeds
+  detect::BoardImageHook draw_board;
+  if (!draw.dir.empty()) {
+    drawings.emplace(draw, images);
+    draw_board = [&](const cv::Mat& grey, const detect::ImageDetection& r) {
+      drawings->write(r.image, detect::draw_board(grey, r, spec, draw));
+    };
+  }
+  const auto results = detect::detect_boards(
+      images, spec, options, [](const detect::ImageDetection& r) { log::info(detect::describe(r)); }, draw_board);
   std::vector<Observation> observations;
   int found = 0;
   for (const auto& r : results) {
@@ -36,6 +48,7 @@ void run_boards(detect::BoardSpec spec, const detect::BoardDetectOptions& option
   if (found == 0) throw GeometryError("no board found in any of the " + std::to_string(images.size()) + " images");
   write_observations(out.stream(), observations);
   out.commit();
+  if (drawings) drawings->keep();
   log::info("board found in " + std::to_string(found) + " of " + std::to_string(images.size()) + " images, " +
             std::to_string(observations.size()) + " corners");
 }
@@ -51,7 +64,7 @@ int main(int argc, char** argv) {
   bool raw_charuco = false;
   detect::BoardSpec spec;
   detect::BoardDetectOptions options;
-  detect::PhotoCli photo;  // --aruco, --aruco-dict-file, --features (detect/photo_cli.hpp)
+  detect::PhotoCli photo;  // --aruco, --aruco-dict-file, --features, --draw (detect/photo_cli.hpp)
   return tool::run(
       argc, argv,
       {"detect", "find board corners, ArUco markers or SIFT features in images; write observations CSV",
@@ -97,6 +110,6 @@ int main(int argc, char** argv) {
           throw UsageError("say what to detect: --chessboard COLSxROWS, --charuco COLSxROWS, --aruco DICT, "
                            "--aruco-dict-file FILE or --features DIR");
         }
-        run_boards(spec, options, images, print_board, output);
+        run_boards(spec, options, images, print_board, output, photo.draw);
       });
 }

@@ -677,9 +677,15 @@ MarkerDetection detect_markers(const cv::Mat& grey, const std::string& image_nam
     case CornerRefinement::Edges:
     case CornerRefinement::None: params->cornerRefinementMethod = cv::aruco::CORNER_REFINE_NONE; break;
   }
-  std::vector<std::vector<cv::Point2f>> corners;
+  std::vector<std::vector<cv::Point2f>> corners, unidentified;
   std::vector<int> ids;
-  cv::aruco::detectMarkers(grey, cv::Ptr<cv::aruco::Dictionary>(dictionary.opencv()), corners, ids, params);
+  cv::aruco::detectMarkers(grey, cv::Ptr<cv::aruco::Dictionary>(dictionary.opencv()), corners, ids, params,
+                           unidentified);
+  for (const auto& c : unidentified) {
+    if (c.size() != 4) continue;
+    out.candidates.push_back({Eigen::Vector2d(c[0].x, c[0].y), Eigen::Vector2d(c[1].x, c[1].y),
+                              Eigen::Vector2d(c[2].x, c[2].y), Eigen::Vector2d(c[3].x, c[3].y)});
+  }
   std::map<int, int> seen;
   for (int id : ids) ++seen[id];
   const int cells = dictionary.bits_per_side() + 2;
@@ -688,16 +694,16 @@ MarkerDetection detect_markers(const cv::Mat& grey, const std::string& image_nam
   std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return ids[a] < ids[b]; });
   for (std::size_t k : order) {
     const int id = ids[k];
-    if (seen[id] > 1) {
-      out.rejected.push_back({id, "id found " + std::to_string(seen[id]) + " times in this image"});
-      continue;
-    }
     std::array<Eigen::Vector2d, 4> q;
     for (int c = 0; c < 4; ++c) q[c] = {corners[k][c].x, corners[k][c].y};
+    if (seen[id] > 1) {
+      out.rejected.push_back({id, "id found " + std::to_string(seen[id]) + " times in this image", q});
+      continue;
+    }
     if (options.refinement == CornerRefinement::Edges) {
       const EdgeFit fit = refine_marker_corners(grey, q, cells, options.edges);
       if (!fit.ok) {
-        out.rejected.push_back({id, fit.failure});
+        out.rejected.push_back({id, fit.failure, q});
         continue;
       }
       q = fit.corners;

@@ -108,6 +108,9 @@ struct MarkerDetectOptions {
 struct RejectedMarker {
   int marker_id = 0;
   std::string reason;
+  // OpenCV's polygon corners TL TR BR BL, px (for drawings).
+  std::array<Eigen::Vector2d, 4> corners{Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(),
+                                         Eigen::Vector2d::Zero()};
   bool operator==(const RejectedMarker&) const = default;
 };
 
@@ -119,6 +122,9 @@ struct MarkerDetection {
   std::vector<int> marker_ids;                        // kept markers, ascending
   std::vector<std::array<Eigen::Vector2d, 4>> corners;  // their corners TL TR BR BL, px
   std::vector<RejectedMarker> rejected;
+  // Quadrilaterals OpenCV's detector found but could not identify as a marker of the dictionary
+  // (its rejectedImgPoints), px; only for drawings.
+  std::vector<std::array<Eigen::Vector2d, 4>> candidates;
   // Every corner of every kept marker, point_id = marker_id * 4 + corner, sorted by point_id.
   std::vector<Observation> observations() const;
 };

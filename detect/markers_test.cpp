@@ -16,6 +16,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "detect/gold_corners.hpp"
 #include "detect/markers.hpp"
 #include "detect/photo_cli.hpp"
 #include "formats/error.hpp"
@@ -206,22 +207,7 @@ struct Gold {
   std::map<int, std::array<Eigen::Vector2d, 4>> corners;
 };
 
-Gold read_gold(const std::string& image) {
-  Gold g;
-  std::ifstream f(kAruco + "gold_corners.txt");
-  for (std::string line; std::getline(f, line);) {
-    if (line.empty() || line[0] == '#') continue;
-    std::istringstream s(line);
-    std::string name;
-    int id = 0;
-    s >> name >> id;
-    if (name != image) continue;
-    std::array<Eigen::Vector2d, 4> q;
-    for (auto& p : q) s >> p.x() >> p.y();
-    g.corners[id] = q;
-  }
-  return g;
-}
+Gold read_gold(const std::string& image) { return {read_gold_corners(kAruco + "gold_corners.txt", image)}; }
 
 // Mean outward offset of the 50 % grey-level crossing from the gold marker edges (mid-edges).
 double crossing_offset_from_gold(const cv::Mat& grey, const Gold& gold) {

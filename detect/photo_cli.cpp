@@ -80,6 +80,14 @@ void add_photo_options(CLI::App& app, PhotoCli& c) {
       ->group(features);
   app.add_option("--mask-margin-cells", c.options.mask_margin_cells, "Masked margin around each marker, marker cells")
       ->group(features)->capture_default_str()->check(CLI::Range(0.0, 100.0));
+  const std::string drawings = "Drawings";
+  app.add_option("--draw", c.draw.dir,
+                 "Draw what was found over each photo into <image file name>.jpg (or .png) in this folder")
+      ->group(drawings);
+  app.add_option("--draw-format", c.draw.format, "Drawings as jpg (small) or png")
+      ->group(drawings)->capture_default_str()->check(CLI::IsMember({"jpg", "png"}));
+  app.add_option("--draw-max-width-px", c.draw.max_width_px, "Drawings of wider photos are scaled down to this width (0: full size)")
+      ->group(drawings)->capture_default_str()->check(CLI::NonNegativeNumber);
 }
 
 bool photo_mode(const PhotoCli& c) { return !c.aruco.empty() || !c.aruco_dict_file.empty() || !c.features_dir.empty(); }
@@ -133,6 +141,15 @@ void run_photos(PhotoCli c, const std::vector<std::string>& images, const std::s
     fs::create_directories(c.features_dir, ec);
     if (!fs::is_directory(c.features_dir)) throw InputError(c.features_dir, 0, "cannot create the features folder");
   }
+  std::optional<DrawingFiles> drawings;  // removes its pictures again unless the run succeeds
+  PhotoImageHook draw;
+  if (!c.draw.dir.empty()) {
+    drawings.emplace(c.draw, images);
+    draw = [&](const cv::Mat& grey, const PhotoResult& r) {
+      drawings->write(images[r.index], draw_photo(grey, r.markers ? &*r.markers : nullptr,
+                                                  r.features ? &*r.features : nullptr, c.draw));
+    };
+  }
   std::unique_ptr<tool::OutputFile> out, bars;
   if (o.dictionary) out = std::make_unique<tool::OutputFile>(output);
   if (!c.scale_bars.empty()) bars = std::make_unique<tool::OutputFile>(c.scale_bars);
@@ -160,7 +177,7 @@ void run_photos(PhotoCli c, const std::vector<std::string>& images, const std::s
       log::info(line);
       log::debug("[" + std::to_string(++done) + "/" + std::to_string(images.size()) + "] " + image + " done");
       found[r.index] = std::move(r.markers);
-    });
+    }, draw);
     if (o.dictionary) {
       std::vector<Observation> observations;
       std::vector<int> ids;
@@ -180,6 +197,7 @@ void run_photos(PhotoCli c, const std::vector<std::string>& images, const std::s
       if (bars) bars->commit();
       out->commit();
     }
+    if (drawings) drawings->keep();
   } catch (...) {
     for (const auto& p : written) {
       std::error_code ec;
@@ -190,6 +208,7 @@ void run_photos(PhotoCli c, const std::vector<std::string>& images, const std::s
   std::string summary = std::to_string(images.size()) + " images";
   if (o.dictionary) summary += ", " + std::to_string(markers) + " markers, " + std::to_string(rejected) + " rejected";
   if (o.sift) summary += ", " + std::to_string(features) + " features in " + c.features_dir;
+  if (drawings) summary += ", " + std::to_string(drawings->written()) + " drawings in " + c.draw.dir;
   log::info(summary);
 }
 

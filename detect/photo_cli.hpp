@@ -8,6 +8,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "detect/draw.hpp"
 #include "detect/photos.hpp"
 
 namespace photomill::detect {
@@ -22,9 +23,11 @@ struct PhotoCli {
   double marker_mm = 0;          // side of the markers (shared with the ChArUco option)
   PhotoOptions options;
   SiftOptions sift;
+  DrawOptions draw;              // --draw DIR: pictures of what was found (every mode)
 };
 
-// Adds the options (groups "Markers" and "Features"). `marker_mm` is registered by the caller.
+// Adds the options (groups "Markers", "Features" and "Drawings"; the drawing options serve the
+// board modes too). `marker_mm` is registered by the caller.
 void add_photo_options(CLI::App& app, PhotoCli& cli);
 
 // True if the command line asks for markers or features.

@@ -10,6 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "formats/error.hpp"
+#include "formats/image.hpp"
 
 namespace photomill::detect {
 
@@ -22,7 +23,7 @@ void validate(const PhotoOptions& o) {
 }
 
 void detect_photos(const std::vector<std::string>& images, const PhotoOptions& options,
-                   const std::function<void(PhotoResult&&)>& on_result) {
+                   const std::function<void(PhotoResult&&)>& on_result, const PhotoImageHook& on_image) {
   validate(options);
   std::atomic<std::size_t> next{0};
   std::atomic<bool> stop{false};
@@ -32,6 +33,7 @@ void detect_photos(const std::vector<std::string>& images, const PhotoOptions& o
   auto worker = [&] {
     for (std::size_t i = next++; i < images.size() && !stop; i = next++) {
       try {
+        check_image_file(images[i]);
         const cv::Mat grey = cv::imread(images[i], cv::IMREAD_GRAYSCALE);
         if (grey.empty()) throw InputError(images[i], 0, "not a readable image");
         PhotoResult r;
@@ -45,6 +47,7 @@ void detect_photos(const std::vector<std::string>& images, const PhotoOptions& o
           }
           r.features = detect_sift(grey, images[i], *options.sift, mask);
         }
+        if (on_image) on_image(grey, r);
         const std::lock_guard<std::mutex> lock(mutex);
         if (!stop) on_result(std::move(r));
       } catch (...) {

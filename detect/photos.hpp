@@ -33,10 +33,14 @@ struct PhotoResult {
 // Throws UsageError for inconsistent options (masking without a dictionary, bad SIFT options).
 void validate(const PhotoOptions& options);
 
+// Called from the worker threads, in parallel (not serialised), with each image as read (grey)
+// and its result, before `on_result`: for work on the pixels such as drawings (draw.hpp).
+using PhotoImageHook = std::function<void(const cv::Mat& grey, const PhotoResult& result)>;
+
 // Processes every image (in parallel) and calls `on_result` once per image, serialised, in the
 // order they finish. Throws InputError(path, 0, "not a readable image") for an image that cannot
-// be read, or what `on_result` throws; the other workers stop at their next image.
+// be read, or what `on_image` or `on_result` throws; the other workers stop at their next image.
 void detect_photos(const std::vector<std::string>& images, const PhotoOptions& options,
-                   const std::function<void(PhotoResult&&)>& on_result);
+                   const std::function<void(PhotoResult&&)>& on_result, const PhotoImageHook& on_image = {});
 
 }  // namespace photomill::detect

@@ -8,11 +8,17 @@
 #include <cctype>
 #include <cerrno>
 #include <cmath>
+#include <csignal>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <sstream>
 #include <string_view>
 #include <utility>
+
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <BRepBuilderAPI_MakeEdge.hxx>
 #include <BRepBuilderAPI_MakeFace.hxx>
@@ -37,7 +43,10 @@
 #include <IGESData_IGESModel.hxx>
 #include <IGESData_IGESWriter.hxx>
 #include <IGESSelect_WorkLibrary.hxx>
+#include <Interface_Check.hxx>
+#include <Interface_CheckIterator.hxx>
 #include <Interface_FloatWriter.hxx>
+#include <Interface_InterfaceModel.hxx>
 #include <Interface_Static.hxx>
 #include <Message.hxx>
 #include <Message_Messenger.hxx>
@@ -50,6 +59,7 @@
 #include <StepData_Protocol.hxx>
 #include <StepData_StepModel.hxx>
 #include <StepData_StepWriter.hxx>
+#include <TCollection_HAsciiString.hxx>
 #include <TColStd_Array1OfInteger.hxx>
 #include <TColStd_Array1OfReal.hxx>
 #include <TColStd_Array2OfReal.hxx>
@@ -62,6 +72,9 @@
 
 #include "formats/error.hpp"
 #include "formats/log.hpp"
+
+// Present only in sanitizer builds (weak: null otherwise).
+extern "C" void __sanitizer_set_death_callback(void (*callback)(void)) __attribute__((weak));
 
 namespace photomill {
 namespace {
@@ -484,6 +497,136 @@ std::string why(IFSelect_ReturnStatus status) {
   }
 }
 
+// Open CASCADE's readers keep going past an entity whose parameters cannot be read (a wrong
+// parameter count, a list that is not a list): the entity is created with those fields unset,
+// and the transfer later dereferences them (a malformed B_SPLINE_CURVE_WITH_KNOTS crashed in
+// StepGeom_BSplineCurveWithKnots::NbKnotMultiplicities). The reader records a "Fail" check for
+// each such entity in the model's syntactic check list (IFSelect_WorkSession::ModelCheckList
+// with complete = false, filled while the file is loaded); a file with any of them is refused
+// before anything is transferred. The semantic checks (complete = true) are not used: they also
+// fail on geometry that the transfer handles itself.
+void refuse_unreadable_entities(XSControl_Reader& reader, const std::string& path) {
+  const Interface_CheckIterator checks = reader.WS()->ModelCheckList(Standard_False);
+  const Handle(Interface_InterfaceModel) model = reader.Model();
+  std::string first;
+  int failing = 0;
+  for (checks.Start(); checks.More(); checks.Next()) {
+    const Handle(Interface_Check)& check = checks.Value();
+    if (check.IsNull() || !check->HasFailed()) continue;
+    if (++failing > 1) continue;
+    const Standard_Integer number = checks.Number();
+    std::string which;  // empty for a check on the whole file
+    if (number > 0 && !model.IsNull() && number <= model->NbEntities()) {
+      const Handle(TCollection_HAsciiString) label = model->StringLabel(model->Value(number));
+      which = "entity " + std::string(label.IsNull() ? "#" + std::to_string(number) : label->ToCString());
+      if (check->HasEntity()) which += std::string(" (") + check->Entity()->DynamicType()->Name() + ")";
+      which += ": ";
+    }
+    first = which + check->CFail(1);
+  }
+  if (failing == 0) return;
+  throw InputError(path, 0,
+                   "cannot be read: " + first +
+                       (failing > 1 ? " (and " + std::to_string(failing - 1) + " more failing entities)" : ""));
+}
+
+// Open CASCADE 7.6's STEP and IGES file parsers themselves crash on some malformed files, inside
+// ReadFile, before any check list exists: a STEP entity that could not be built is added to the
+// model as a null handle (Interface_InterfaceModel::AddEntity -> Standard_Transient::IsKind on
+// null), an IGES B-spline surface whose parameters failed to read is initialised from null
+// arrays (IGESGeom_ToolBSplineSurface::ReadOwnParams -> IGESGeom_BSplineSurface::Init); both
+// found by fuzzing within minutes, with more of the kind behind them. Guarding every entity type
+// OCCT dereferences would mean re-parsing both formats, so the whole read runs in a child process
+// instead (fork, no exec: the child inherits Open CASCADE already set up). The child sends back
+// the faces in photomill's surface text (exact: shortest round-trip decimals) or the InputError
+// it threw; a child that dies - by a signal, or a sanitizer's report - is a file Open CASCADE
+// cannot read, answered with an InputError, and the calling process is untouched.
+std::vector<BSplineSurface> read_isolated(const std::string& path, const char* format,
+                                          const std::function<std::vector<BSplineSurface>()>& read) {
+  int fds[2];
+  if (::pipe(fds) != 0) throw InputError(path, 0, std::string("cannot create a pipe: ") + std::strerror(errno));
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    const int err = errno;
+    ::close(fds[0]);
+    ::close(fds[1]);
+    throw InputError(path, 0, std::string("cannot start the ") + format + " reader process: " + std::strerror(err));
+  }
+  if (pid == 0) {
+    ::close(fds[0]);
+    // Under a sanitizer, a crash in the child must not run the parent's death callback (libFuzzer
+    // would record the input as a crash of the harness): the child only reports to the parent.
+    if (__sanitizer_set_death_callback != nullptr) __sanitizer_set_death_callback(nullptr);
+    std::ostringstream reply;
+    try {
+      const std::vector<BSplineSurface> faces = read();
+      reply << "faces " << faces.size() << "\n";
+      for (const BSplineSurface& f : faces) {
+        std::ostringstream text;
+        write_surface(text, f);
+        reply << text.str().size() << "\n" << text.str();
+      }
+    } catch (const InputError& e) {
+      reply.str("");
+      reply << "error " << e.line() << "\n" << e.source().size() << "\n" << e.source() << e.message();
+    } catch (const std::exception& e) {
+      reply.str("");
+      reply << "error 0\n" << path.size() << "\n" << path << e.what();
+    }
+    const std::string bytes = reply.str();
+    for (std::size_t done = 0; done < bytes.size();) {
+      const ssize_t n = ::write(fds[1], bytes.data() + done, bytes.size() - done);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) ::_exit(3);
+      done += static_cast<std::size_t>(n);
+    }
+    ::_exit(0);  // no static destructors, no atexit handlers, no leak check of the parent's state
+  }
+  ::close(fds[1]);
+  std::string bytes;
+  char buf[1 << 16];
+  for (;;) {
+    const ssize_t n = ::read(fds[0], buf, sizeof buf);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    bytes.append(buf, static_cast<std::size_t>(n));
+  }
+  ::close(fds[0]);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    const std::string how = WIFSIGNALED(status) ? std::string("signal ") + ::strsignal(WTERMSIG(status))
+                                                : "exit status " + std::to_string(WEXITSTATUS(status));
+    throw InputError(path, 0, std::string("malformed ") + format + " file: Open CASCADE's reader crashed on it (" + how + ")");
+  }
+  std::istringstream in(bytes);
+  std::string kind;
+  in >> kind;
+  if (kind == "error") {
+    std::size_t line = 0, source_size = 0;
+    in >> line >> source_size;
+    in.get();
+    std::string source(source_size, '\0');
+    in.read(source.data(), static_cast<std::streamsize>(source_size));
+    std::string message((std::istreambuf_iterator<char>(in)), {});
+    throw InputError(source, line, message);
+  }
+  std::size_t count = 0;
+  if (kind != "faces" || !(in >> count)) throw InputError(path, 0, std::string("the ") + format + " reader process gave no answer");
+  std::vector<BSplineSurface> faces;
+  for (std::size_t i = 0; i < count; ++i) {
+    std::size_t size = 0;
+    in >> size;
+    in.get();
+    std::string text(size, '\0');
+    in.read(text.data(), static_cast<std::streamsize>(size));
+    std::istringstream face(text);
+    faces.push_back(read_surface(face, path + " (face " + std::to_string(i + 1) + ")"));
+  }
+  return faces;
+}
+
 }  // namespace
 
 void write_step(const BSplineSurface& surface, const std::string& path) {
@@ -523,23 +666,29 @@ void write_iges(const BSplineSurface& surface, const std::string& path) {
 
 std::vector<BSplineSurface> read_step(const std::string& path) {
   check_kind(path, CadKind::Step);
-  return guarded(path, "read STEP", [&] {
-    STEPControl_Reader reader;
-    const IFSelect_ReturnStatus status = reader.ReadFile(path.c_str());
-    if (status != IFSelect_RetDone) throw InputError(path, 0, "not a readable STEP file" + why(status));
-    reader.TransferRoots();
-    return faces_of(reader.OneShape(), path);
+  return read_isolated(path, "STEP", [&] {
+    return guarded(path, "read STEP", [&] {
+      STEPControl_Reader reader;
+      const IFSelect_ReturnStatus status = reader.ReadFile(path.c_str());
+      if (status != IFSelect_RetDone) throw InputError(path, 0, "not a readable STEP file" + why(status));
+      refuse_unreadable_entities(reader, path);
+      reader.TransferRoots();
+      return faces_of(reader.OneShape(), path);
+    });
   });
 }
 
 std::vector<BSplineSurface> read_iges(const std::string& path) {
   check_kind(path, CadKind::Iges);
-  return guarded(path, "read IGES", [&] {
-    IGESControl_Reader reader;
-    const IFSelect_ReturnStatus status = reader.ReadFile(path.c_str());
-    if (status != IFSelect_RetDone) throw InputError(path, 0, "not a readable IGES file" + why(status));
-    reader.TransferRoots();
-    return faces_of(reader.OneShape(), path);
+  return read_isolated(path, "IGES", [&] {
+    return guarded(path, "read IGES", [&] {
+      IGESControl_Reader reader;
+      const IFSelect_ReturnStatus status = reader.ReadFile(path.c_str());
+      if (status != IFSelect_RetDone) throw InputError(path, 0, "not a readable IGES file" + why(status));
+      refuse_unreadable_entities(reader, path);
+      reader.TransferRoots();
+      return faces_of(reader.OneShape(), path);
+    });
   });
 }
 

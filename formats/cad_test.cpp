@@ -543,9 +543,33 @@ TEST(Cad, UnreadableFilesAreInputErrors) {
   const std::string cut = dir.file("cut.step");
   write_text(cut, all.substr(0, all.size() / 2));
   expect_input_error([&] { read_step(cut); }, cut, "not a readable STEP file: ");
+  // An entity whose parameters cannot be read (one parameter short): Open CASCADE would create
+  // it with unset fields and crash while transferring it (found by fuzzing); it is refused first.
+  std::string short_entity = all;
+  const std::string curve = "B_SPLINE_CURVE_WITH_KNOTS('',";
+  const auto at = short_entity.find(curve);
+  ASSERT_NE(at, std::string::npos) << "test bug: no " << curve << " in the written file";
+  short_entity.replace(at, curve.size(), "B_SPLINE_CURVE_WITH_KNOTS(");
+  const std::string unreadable = dir.file("unreadable.step");
+  write_text(unreadable, short_entity);
+  expect_input_error([&] { read_step(unreadable); }, unreadable, "cannot be read: entity #");
+  expect_input_error([&] { read_step(unreadable); }, unreadable, "Count of Parameters is not 9 for b_spline_curve_with_knots");
   const std::string iges_like = dir.file("broken.iges");
   write_text(iges_like, std::string(72, ' ') + "S      1\n" + std::string(72, 'x') + "G      1\n");
   expect_input_error([&] { read_iges(iges_like); }, iges_like, "");
+}
+
+// Files on which Open CASCADE 7.6's parsers themselves crash (found by fuzzing): the read runs in
+// a child process, and its crash is this process's InputError.
+TEST(Cad, ReaderCrashesAreInputErrors) {
+  const std::string corpus = std::string(PHOTOMILL_SOURCE_DIR) + "/tests/fuzz/corpus/";
+  const std::string step = corpus + "step/crash-fffe3bbedb8eb1886502fca247e649dc7338184c";
+  expect_input_error([&] { read_step(step); }, step, "malformed STEP file: Open CASCADE's reader crashed on it");
+  const std::string iges = corpus + "iges/crash-66e16d2fa7ca5a0463b02841412aa106fe58511c";
+  expect_input_error([&] { read_iges(iges); }, iges, "malformed IGES file: Open CASCADE's reader crashed on it");
+  // A file the reader refuses before transferring (a parameter that cannot be read).
+  const std::string refused = corpus + "step/crash-79050776544b7cdb1805831b0dbdfdd18e986b58";
+  expect_input_error([&] { read_step(refused); }, refused, "cannot be read: entity #5");
 }
 
 TEST(Cad, FilesWithoutFacesAreInputErrors) {

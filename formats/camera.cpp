@@ -1,10 +1,12 @@
 #include "formats/camera.hpp"
 
+#include <algorithm>
 #include <cmath>
-#include <cctype>
-#include <sstream>
-
-#include <opencv2/core.hpp>
+#include <cstdint>
+#include <limits>
+#include <map>
+#include <optional>
+#include <string_view>
 
 #include "formats/error.hpp"
 #include "formats/text.hpp"
@@ -12,48 +14,277 @@
 namespace photomill {
 namespace {
 
-// A camera file's matrices are 3x3 and at most 14x1. Checking the declared sizes in the text
-// before cv::FileStorage parses it keeps a hostile "rows: 1000000" from allocating gigabytes.
-constexpr long kMaxDeclaredDim = 64;
+// The camera file is read by a strict parser of the YAML subset that OpenCV's FileStorage writes
+// (and its sample calibration files use), not by cv::FileStorage itself: OpenCV 4.6's YAML
+// parser loops forever on some 20-byte inputs (" L:0\n%m--\ni", "[i{:&,|]]{\n->", found by
+// fuzzing) and allocates whatever rows x cols a matrix declares before looking at its data (a
+// non-numeric "cols" reads as INT_MAX: 48 GB). The subset:
+//   [%YAML:1.x]  [---]                   directive and document start, both optional
+//   key: scalar                          top-level entries at column 0, each key once
+//   key: !!opencv-matrix                 followed by indented "rows: R", "cols: C", "dt: d"
+//      rows: 3 ...                       and "data: [ v, v, ... ]" (the list may continue on
+//      data: [ 1., 0.,                   further indented lines)
+//          0. ]
+//   # comments, blank lines; "..." ends the document
+// Entries this reader does not use (nframes, flags, per_view_reprojection_errors...) are skipped
+// with their indented lines, unparsed. Everything else is refused with its line number.
 
-void check_declared_sizes(const std::string& text, const std::string& source) {
-  // Every "rows:" or "cols:" followed by an integer, wherever it is (a hostile file need not be
-  // well-formed YAML for FileStorage to start allocating).
-  for (const char* key : {"rows", "cols"}) {
-    for (std::size_t pos = text.find(key); pos != std::string::npos; pos = text.find(key, pos + 4)) {
-      std::size_t i = pos + 4;
-      while (i < text.size() && (text[i] == ' ' || text[i] == '\t')) ++i;
-      if (i >= text.size() || text[i] != ':') continue;
-      ++i;
-      while (i < text.size() && (text[i] == ' ' || text[i] == '\t')) ++i;
-      const std::size_t start = i;
-      if (i < text.size() && text[i] == '-') ++i;
-      while (i < text.size() && std::isdigit(static_cast<unsigned char>(text[i]))) ++i;
-      const std::string digits = text.substr(start, i - start);
-      if (digits.empty() || digits == "-") continue;
-      const bool too_long = digits.size() > 9;
-      const long value = too_long ? kMaxDeclaredDim + 1 : std::stol(digits);
-      if (value < 0 || value > kMaxDeclaredDim) {
-        throw InputError(source, 0, "matrix declares " + std::string(key) + ": " + digits + ", not a camera file");
+// A camera file's matrices are 3x3 and at most 14x1.
+constexpr int kMaxMatrixDim = 64;
+
+struct Line {
+  std::size_t number;     // 1-based
+  std::string_view text;  // without the line end
+};
+
+std::vector<Line> lines_of(const std::string& text) {
+  std::vector<Line> lines;
+  std::size_t number = 1;
+  for (std::size_t pos = 0; pos < text.size(); ++number) {
+    std::size_t end = text.find('\n', pos);
+    if (end == std::string::npos) end = text.size();
+    std::string_view line = std::string_view(text).substr(pos, end - pos);
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);  // CRLF line ends
+    lines.push_back({number, line});
+    pos = end + 1;
+  }
+  return lines;
+}
+
+bool blank_or_comment(std::string_view line) {
+  const std::string_view t = trim(line);
+  return t.empty() || t.front() == '#';
+}
+
+bool indented(std::string_view line) { return !line.empty() && (line.front() == ' ' || line.front() == '\t'); }
+
+// A value less a trailing " # comment" (a '#' inside double quotes is kept).
+std::string_view strip_comment(std::string_view v) {
+  bool quoted = false;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    if (v[i] == '"') quoted = !quoted;
+    if (v[i] == '#' && !quoted && (i == 0 || v[i - 1] == ' ' || v[i - 1] == '\t')) return trim(v.substr(0, i));
+  }
+  return trim(v);
+}
+
+bool is_key(std::string_view k) {
+  if (k.empty() || k.size() > 256) return false;
+  for (char ch : k) {
+    const bool ok = (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || ch == '_' || ch == '-';
+    if (!ok) return false;
+  }
+  return true;
+}
+
+struct KeyValue {
+  std::string_view key;
+  std::string_view value;  // trimmed, comment removed
+};
+
+// "key: value" or "key:" (after any indentation), else nullopt.
+std::optional<KeyValue> key_value(std::string_view line) {
+  const std::string_view t = trim(line);
+  const auto colon = t.find(':');
+  if (colon == std::string_view::npos) return std::nullopt;
+  const std::string_view key = t.substr(0, colon);
+  if (!is_key(key)) return std::nullopt;
+  const std::string_view rest = t.substr(colon + 1);
+  if (!rest.empty() && rest.front() != ' ' && rest.front() != '\t') return std::nullopt;
+  return KeyValue{key, strip_comment(rest)};
+}
+
+struct Entry {
+  std::size_t line = 0;
+  std::string_view value;
+  std::vector<Line> block;  // the indented lines that follow
+};
+
+// YAML's spellings of the non-finite reals, which OpenCV writes.
+std::optional<double> yaml_special(std::string_view v) {
+  if (v == ".nan" || v == ".NaN" || v == ".NAN") return std::numeric_limits<double>::quiet_NaN();
+  if (v == ".inf" || v == ".Inf" || v == ".INF" || v == "+.inf") return std::numeric_limits<double>::infinity();
+  if (v == "-.inf" || v == "-.Inf" || v == "-.INF") return -std::numeric_limits<double>::infinity();
+  return std::nullopt;
+}
+
+class CameraYaml {
+public:
+  CameraYaml(const std::string& text, const std::string& source) : source_(source) { parse(lines_of(text)); }
+
+  const Entry* find(const std::string& key) const {
+    const auto it = entries_.find(key);
+    return it == entries_.end() ? nullptr : &it->second;
+  }
+
+  const Entry& require(const std::string& key) const {
+    const Entry* e = find(key);
+    if (e == nullptr) throw InputError(source_, 0, "missing key '" + key + "'");
+    return *e;
+  }
+
+  int integer(const std::string& key) const {
+    const Entry& e = require(key);
+    scalar_only(e, key);
+    const auto v = parse_int(e.value);
+    if (!v || *v < std::numeric_limits<int>::min() || *v > std::numeric_limits<int>::max()) {
+      throw InputError(source_, e.line, "'" + key + "' is not an integer: '" + std::string(e.value) + "'");
+    }
+    return static_cast<int>(*v);
+  }
+
+  double real(const Entry& e, const std::string& key) const {
+    scalar_only(e, key);
+    if (const auto special = yaml_special(e.value)) return *special;
+    const auto v = parse_double(e.value);
+    if (!v) throw InputError(source_, e.line, "'" + key + "' is not a number: '" + std::string(e.value) + "'");
+    return *v;
+  }
+
+  struct Matrix {
+    int rows = 0;
+    int cols = 0;
+    std::vector<double> data;  // row-major
+  };
+
+  // An !!opencv-matrix entry. The declared sizes are checked against the limits and against the
+  // number of values actually listed before anything is sized by them.
+  Matrix matrix(const std::string& key) const {
+    const Entry& e = require(key);
+    const std::string name = "'" + key + "'";
+    if (e.value != "!!opencv-matrix") {
+      throw InputError(source_, e.line, name + " is not an !!opencv-matrix (rows, cols, dt, data)");
+    }
+    std::map<std::string_view, std::size_t> seen;  // field -> line
+    std::optional<int> rows, cols;
+    std::optional<std::size_t> data_line;
+    std::vector<double> data;
+    for (std::size_t i = 0; i < e.block.size(); ++i) {
+      const Line& l = e.block[i];
+      if (blank_or_comment(l.text)) continue;
+      const auto kv = key_value(l.text);
+      if (!kv) throw InputError(source_, l.number, name + ": expected 'rows:', 'cols:', 'dt:' or 'data:'");
+      if (!seen.emplace(kv->key, l.number).second) {
+        throw InputError(source_, l.number, name + " has '" + std::string(kv->key) + "' twice");
+      }
+      if (kv->key == "rows" || kv->key == "cols") {
+        const auto v = parse_int(kv->value);
+        if (!v) {
+          throw InputError(source_, l.number, name + " " + std::string(kv->key) + ": '" + std::string(kv->value) +
+                                                  "' is not an integer");
+        }
+        if (*v < 1 || *v > kMaxMatrixDim) {
+          throw InputError(source_, l.number, name + " matrix declares " + std::string(kv->key) + ": " +
+                                                  std::string(kv->value) + "; a camera file's matrices have 1 to " +
+                                                  std::to_string(kMaxMatrixDim));
+        }
+        (kv->key == "rows" ? rows : cols) = static_cast<int>(*v);
+      } else if (kv->key == "dt") {
+        std::string_view dt = kv->value;
+        if (dt.size() >= 2 && dt.front() == '"' && dt.back() == '"') dt = dt.substr(1, dt.size() - 2);
+        // One channel of a number type (OpenCV's format letters); "3d" would be three channels.
+        if (dt.size() != 1 || std::string_view("ucwsifd").find(dt.front()) == std::string_view::npos) {
+          throw InputError(source_, l.number, name + " dt: '" + std::string(dt) +
+                                                  "' is not a one-channel OpenCV number type (d, f, i...)");
+        }
+      } else if (kv->key == "data") {
+        data_line = l.number;
+        // The list, possibly continued on the following block lines, up to its ']'.
+        std::string list(kv->value);
+        for (bool closed = list.find(']') != std::string::npos; !closed && i + 1 < e.block.size();) {
+          const std::string_view more = strip_comment(e.block[++i].text);
+          closed = more.find(']') != std::string_view::npos;
+          list += ' ';
+          list += more;
+        }
+        const std::string_view t = trim(list);
+        if (t.size() < 2 || t.front() != '[' || t.back() != ']' || t.find(']') != t.size() - 1 ||
+            t.find('[', 1) != std::string_view::npos) {
+          throw InputError(source_, l.number, name + " data is not a list [ v, v, ... ]");
+        }
+        const std::string_view inner = trim(t.substr(1, t.size() - 2));
+        constexpr std::size_t kMaxValues = static_cast<std::size_t>(kMaxMatrixDim) * kMaxMatrixDim;
+        if (static_cast<std::size_t>(std::count(inner.begin(), inner.end(), ',')) >= kMaxValues) {
+          throw InputError(source_, l.number, name + " data has more than " + std::to_string(kMaxValues) + " values");
+        }
+        if (!inner.empty()) {
+          for (std::string_view field : split_fields(inner, ',')) {
+            if (const auto special = yaml_special(field)) {
+              data.push_back(*special);
+              continue;
+            }
+            const auto v = parse_double(field);
+            if (!v) {
+              throw InputError(source_, l.number, name + " data has a value that is not a number: '" +
+                                                      std::string(field) + "'");
+            }
+            data.push_back(*v);
+          }
+        }
+      } else {
+        throw InputError(source_, l.number, name + " has an unknown field '" + std::string(kv->key) + "'");
       }
     }
+    for (const char* field : {"rows", "cols", "dt", "data"}) {
+      if (!seen.count(field)) throw InputError(source_, e.line, name + " has no '" + field + "'");
+    }
+    const std::size_t expected = static_cast<std::size_t>(*rows) * static_cast<std::size_t>(*cols);
+    if (data.size() != expected) {
+      throw InputError(source_, *data_line, name + " data has " + std::to_string(data.size()) +
+                                                " values; rows x cols = " + std::to_string(*rows) + " x " +
+                                                std::to_string(*cols) + " needs " + std::to_string(expected));
+    }
+    return {*rows, *cols, std::move(data)};
   }
-}
 
-cv::Mat read_matrix(const cv::FileNode& node, const char* key, const std::string& source) {
-  if (node.empty() || node.isNone()) throw InputError(source, 0, std::string("missing key '") + key + "'");
-  cv::Mat m;
-  node >> m;
-  if (m.empty()) throw InputError(source, 0, std::string("'") + key + "' is not an OpenCV matrix");
-  m.convertTo(m, CV_64F);
-  return m;
-}
+private:
+  void scalar_only(const Entry& e, const std::string& key) const {
+    for (const Line& l : e.block) {
+      if (!blank_or_comment(l.text)) throw InputError(source_, l.number, "'" + key + "' must be a single value");
+    }
+  }
 
-int read_int(const cv::FileNode& node, const char* key, const std::string& source) {
-  if (node.empty() || node.isNone()) throw InputError(source, 0, std::string("missing key '") + key + "'");
-  if (!node.isInt()) throw InputError(source, 0, std::string("'") + key + "' is not an integer");
-  return static_cast<int>(node);
-}
+  void parse(const std::vector<Line>& lines) {
+    std::size_t i = 0;
+    const auto skip_blank = [&] {
+      while (i < lines.size() && blank_or_comment(lines[i].text)) ++i;
+    };
+    skip_blank();
+    if (i < lines.size() && lines[i].text.rfind("%", 0) == 0) {
+      const std::string_view d = trim(lines[i].text);
+      if (d.rfind("%YAML:1.", 0) != 0 && d.rfind("%YAML 1.", 0) != 0) {
+        throw InputError(source_, lines[i].number, "not an OpenCV camera YAML file: unsupported directive '" +
+                                                       std::string(d.substr(0, 40)) + "'");
+      }
+      ++i;
+      skip_blank();
+    }
+    if (i < lines.size() && trim(lines[i].text) == "---") ++i;
+    for (; i < lines.size();) {
+      const Line& l = lines[i];
+      if (blank_or_comment(l.text)) {
+        ++i;
+        continue;
+      }
+      if (trim(l.text) == "...") break;  // end of the document
+      const auto kv = indented(l.text) ? std::nullopt : key_value(l.text);
+      if (!kv) {
+        throw InputError(source_, l.number, "not an OpenCV camera YAML file: expected 'key: value' at the start of the line");
+      }
+      Entry e{l.number, kv->value, {}};
+      for (++i; i < lines.size() && (indented(lines[i].text) || blank_or_comment(lines[i].text)); ++i) {
+        e.block.push_back(lines[i]);
+      }
+      if (!entries_.emplace(std::string(kv->key), std::move(e)).second) {
+        throw InputError(source_, l.number, "duplicate key '" + std::string(kv->key) + "'");
+      }
+    }
+    if (entries_.empty()) throw InputError(source_, 0, "not an OpenCV camera YAML file: no 'key: value' entries");
+  }
+
+  std::string source_;
+  std::map<std::string, Entry> entries_;
+};
 
 }  // namespace
 
@@ -97,38 +328,24 @@ Camera read_camera_yaml(std::istream& in, const std::string& source, CameraYamlL
   if (trim(text).empty()) throw InputError(source, 0, "empty input: expected an OpenCV camera YAML file");
   if (text.find('\0') != std::string::npos) throw InputError(source, 0, "binary data, not a camera YAML file");
   if (text.rfind("\xEF\xBB\xBF", 0) == 0) text.erase(0, 3);
-  // OpenCV's YAML parser insists on the "%YAML" directive; accept files without one.
-  if (text.rfind("%YAML", 0) != 0) text = "%YAML:1.0\n---\n" + text;
-  check_declared_sizes(text, source);
 
+  const CameraYaml yaml(text, source);
   Camera c;
-  try {
-    cv::FileStorage fs(text, cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
-    if (!fs.isOpened()) throw InputError(source, 0, "not a readable OpenCV YAML file");
-    c.image_width_px = read_int(fs["image_width"], "image_width", source);
-    c.image_height_px = read_int(fs["image_height"], "image_height", source);
-    const cv::Mat k = read_matrix(fs["camera_matrix"], "camera_matrix", source);
-    if (k.rows != 3 || k.cols != 3) throw InputError(source, 0, "camera_matrix must be 3x3");
-    for (int r = 0; r < 3; ++r) {
-      for (int col = 0; col < 3; ++col) c.camera_matrix(r, col) = k.at<double>(r, col);
-    }
-    const cv::FileNode dn = fs["distortion_coefficients"];
-    if (!dn.empty() && !dn.isNone()) {
-      const cv::Mat d = read_matrix(dn, "distortion_coefficients", source);
-      if (d.rows != 1 && d.cols != 1) throw InputError(source, 0, "distortion_coefficients must be a vector");
-      c.distortion.assign(d.begin<double>(), d.end<double>());
-    }
-    const cv::FileNode e = fs["avg_reprojection_error"];
-    if (!e.empty() && !e.isNone()) {
-      if (!e.isReal() && !e.isInt()) throw InputError(source, 0, "avg_reprojection_error is not a number");
-      c.avg_reprojection_error_px = static_cast<double>(e);
-    }
-  } catch (const cv::Exception& e) {
-    // OpenCV's message is multi-line with its own source location; keep the first useful part.
-    std::string msg = e.err.empty() ? e.what() : e.err;
-    if (const auto nl = msg.find('\n'); nl != std::string::npos) msg.resize(nl);
-    throw InputError(source, 0, "not a valid OpenCV YAML camera file: " + msg);
+  c.image_width_px = yaml.integer("image_width");
+  c.image_height_px = yaml.integer("image_height");
+  const CameraYaml::Matrix k = yaml.matrix("camera_matrix");
+  if (k.rows != 3 || k.cols != 3) throw InputError(source, yaml.require("camera_matrix").line, "camera_matrix must be 3x3");
+  for (int r = 0; r < 3; ++r) {
+    for (int col = 0; col < 3; ++col) c.camera_matrix(r, col) = k.data[static_cast<std::size_t>(r * 3 + col)];
   }
+  if (yaml.find("distortion_coefficients") != nullptr) {
+    const CameraYaml::Matrix d = yaml.matrix("distortion_coefficients");
+    if (d.rows != 1 && d.cols != 1) {
+      throw InputError(source, yaml.require("distortion_coefficients").line, "distortion_coefficients must be a vector");
+    }
+    c.distortion = d.data;
+  }
+  if (const Entry* e = yaml.find("avg_reprojection_error")) c.avg_reprojection_error_px = yaml.real(*e, "avg_reprojection_error");
   validate_camera(c, source);
   return c;
 }

@@ -8,6 +8,7 @@
 #include "formats/csv.hpp"
 #include "formats/error.hpp"
 #include "formats/text.hpp"
+#include "formats/magnitude.hpp"
 
 namespace photomill {
 namespace {
@@ -99,8 +100,8 @@ ClData read_cl_apt(std::istream& in, const std::string& source) {
     const auto args = slash == std::string_view::npos ? std::vector<std::string_view>() : split_fields(rest, ',');
     auto number = [&](std::size_t k, const char* what) {
       if (k >= args.size()) lines.fail(word + ": missing " + what);
-      const auto v = parse_double(args[k]);
-      if (!v) lines.fail(word + ": " + what + " is not a finite number: '" + std::string(args[k]) + "'");
+      const auto v = parse_bounded(args[k]);
+      if (!v) lines.fail(word + ": " + what + " " + number_problem(args[k]));
       return *v;
     };
     if (word == "PARTNO") {

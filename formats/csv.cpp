@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "formats/error.hpp"
+#include "formats/magnitude.hpp"
 
 namespace photomill {
 
@@ -65,10 +66,8 @@ std::string_view CsvReader::text(std::size_t column) const {
 
 double CsvReader::number(std::size_t column) const {
   const std::string_view f = text(column);
-  const auto v = parse_double(f);
-  if (!v) {
-    lines_.fail("field '" + names_[column] + "' is not a finite number: '" + std::string(f) + "'");
-  }
+  const auto v = parse_bounded(f);
+  if (!v) lines_.fail("field '" + names_[column] + "' " + number_problem(f));
   return *v;
 }
 

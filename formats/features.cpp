@@ -5,6 +5,7 @@
 
 #include "formats/error.hpp"
 #include "formats/text.hpp"
+#include "formats/magnitude.hpp"
 
 namespace photomill {
 
@@ -62,8 +63,8 @@ FeatureSet read_features(std::istream& in, const std::string& source, FeatureLim
     double* fields[5] = {&kp.x_px, &kp.y_px, &kp.size_px, &kp.angle_deg, &kp.response};
     const char* names[5] = {"x_px", "y_px", "size_px", "angle_deg", "response"};
     for (int c = 0; c < 5; ++c) {
-      const auto v = parse_double(f[static_cast<std::size_t>(c)]);
-      if (!v) lines.fail(std::string(names[c]) + " is not a finite number");
+      const auto v = parse_bounded(f[static_cast<std::size_t>(c)]);
+      if (!v) lines.fail(std::string(names[c]) + " " + number_problem(f[static_cast<std::size_t>(c)]));
       *fields[c] = *v;
     }
     fs.keypoints.push_back(kp);

@@ -12,6 +12,7 @@
 
 #include "formats/error.hpp"
 #include "formats/text.hpp"
+#include "formats/magnitude.hpp"
 
 namespace photomill {
 
@@ -248,6 +249,9 @@ PointCloud read_ply(std::istream& in, const std::string& source, PointCloudLimit
     if (!xyz.allFinite()) {
       throw InputError(source, 0, "vertex " + std::to_string(index) + " has a non-finite coordinate");
     }
+    if (xyz.cwiseAbs().maxCoeff() > kMaxMagnitude) {
+      throw InputError(source, 0, "vertex " + std::to_string(index) + " has a coordinate beyond ±1e15 mm, not a plausible value");
+    }
     cloud.points_mm.push_back(xyz);
     for (std::size_t k = 0; k < record.size(); ++k) {
       if (column[k] >= 0) {
@@ -437,8 +441,8 @@ PointCloud read_xyz(std::istream& in, const std::string& source, PointCloudLimit
     if (f.size() < 3) lines.fail("expected at least 3 numbers (x y z), got " + std::to_string(f.size()));
     Eigen::Vector3d p;
     for (int c = 0; c < 3; ++c) {
-      const auto v = parse_double(f[static_cast<std::size_t>(c)]);
-      if (!v) lines.fail(std::string(1, "xyz"[c]) + " is not a finite number: '" + std::string(f[static_cast<std::size_t>(c)]) + "'");
+      const auto v = parse_bounded(f[static_cast<std::size_t>(c)]);
+      if (!v) lines.fail(std::string(1, "xyz"[c]) + " " + number_problem(f[static_cast<std::size_t>(c)]));
       p[c] = *v;
     }
     cloud.points_mm.push_back(p);

@@ -6,6 +6,7 @@
 
 #include "formats/error.hpp"
 #include "formats/text.hpp"
+#include "formats/magnitude.hpp"
 
 namespace photomill {
 namespace {
@@ -106,8 +107,8 @@ BSplineSurface read_surface(std::istream& in, const std::string& source) {
     return split_whitespace(*line);
   };
   auto number = [&](std::string_view f, std::string_view what) {
-    const auto v = parse_double(f);
-    if (!v) lines.fail(std::string(what) + " is not a finite number: '" + std::string(f) + "'");
+    const auto v = parse_bounded(f);
+    if (!v) lines.fail(std::string(what) + " " + number_problem(f));
     return *v;
   };
   auto integer = [&](std::string_view f, std::string_view what, long long lo, long long hi) {

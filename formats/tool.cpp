@@ -157,6 +157,15 @@ OutputFile::~OutputFile() {
 }
 
 const std::string& OutputFile::temp_path() {
+  if (temp_.empty() && !to_stdout_ && !direct_) {
+    // A library that writes by name would name the temporary file in its error: name the output.
+    const auto folder = std::filesystem::path(path_).parent_path();
+    std::error_code ec;
+    if (!folder.empty() && !std::filesystem::is_directory(folder, ec)) {
+      throw InputError(path_, 0, std::string("cannot write: ") +
+                                     (std::filesystem::exists(folder, ec) ? "Not a directory" : "No such file or directory"));
+    }
+  }
   if (temp_.empty()) {
     // stdout and devices: a private temporary file whose contents commit() copies over.
     temp_ = make_temp_name(to_stdout_ || direct_ ? std::filesystem::temp_directory_path() / "photomill-out"

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <sstream>
 
+#include "formats/camera_bounds.hpp"
 #include "formats/error.hpp"
 #include "formats/log.hpp"
 #include "formats/tool.hpp"
@@ -81,6 +82,11 @@ MatchInputs read_inputs(Cli& c) {
   }
   if (paths.empty()) paths.push_back("-");
   MatchInputs in;
+  if (!c.camera.empty()) {
+    in.camera = read_camera_yaml(*tool::open_input(c.camera), tool::source_name(c.camera));
+  } else {
+    log::warn("no --camera: epipolar checks on distorted pixels, where lens distortion can reject correct points");
+  }
   for (const auto& path : paths) {
     const std::string text = tool::read_all(path, std::size_t{1} << 32);
     std::istringstream stream(text);
@@ -88,13 +94,14 @@ MatchInputs read_inputs(Cli& c) {
       in.features.push_back(read_features(stream, tool::source_name(path)));
     } else {
       const auto obs = read_observations(stream, tool::source_name(path));
+      if (in.camera) check_inside_camera_image(obs, tool::source_name(path), *in.camera, tool::source_name(c.camera));
       in.observations.insert(in.observations.end(), obs.begin(), obs.end());
     }
   }
-  if (!c.camera.empty()) {
-    in.camera = read_camera_yaml(*tool::open_input(c.camera), tool::source_name(c.camera));
-  } else {
-    log::warn("no --camera: epipolar checks on distorted pixels, where lens distortion can reject correct points");
+  if (in.observations.empty() && in.features.empty()) {
+    std::string sources;
+    for (const auto& path : paths) sources += (sources.empty() ? "" : ", ") + tool::source_name(path);
+    throw InputError(sources, 0, "no observations: nothing to match");
   }
   if (!c.poses.empty()) in.poses = read_poses(*tool::open_input(c.poses), tool::source_name(c.poses));
   return in;

@@ -263,7 +263,7 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(
         GoldenCase{"missing_input", {"{dir}/missing.csv", "-o", "{dir}/out.csv"}, "", 1, "missing.csv"},
         GoldenCase{"malformed_line", {"{dir}/bad.csv", "-o", "{dir}/out.csv"}, "", 1, "bad.csv:3:"},
-        GoldenCase{"header_only", {"{dir}/empty.csv", "-o", "{dir}/out.csv"}, "", 1, "at least 2 are needed"},
+        GoldenCase{"header_only", {"{dir}/empty.csv", "-o", "{dir}/out.csv"}, "", 1, "empty.csv: no observations"},
         GoldenCase{"poses_without_camera", {"{demo}observations.csv", "--poses", "{demo}poses.csv", "-o", "{dir}/out.csv"}, "", 2,
                    "--camera"},
         GoldenCase{"empty_features_folder", {"--features", "{dir}/nofeat", "-o", "{dir}/out.csv"}, "", 1, "no .feat files"},

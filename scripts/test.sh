@@ -2,7 +2,8 @@
 # Installs the dependencies (Debian 12), builds photomill and runs the whole test suite.
 #   scripts/test.sh              Release build in build/ (the README's test command)
 #   scripts/test.sh --sanitize   the same suite built with ASan + UBSan in build-asan/
-# CI (.ci/run) runs both.
+# CI (.ci/run) runs the first; the second joins it once the whole suite has passed under it in
+# CI's time budget (issue #11).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 

@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 #include <string>
 
 #include "formats/error.hpp"
@@ -26,6 +27,9 @@ std::string comment(std::string text) {
 std::string gcode_number(double value, int decimals) {
   char buf[64];
   const auto r = std::to_chars(buf, buf + sizeof buf, value, std::chars_format::fixed, decimals);
+  // A value too long for the buffer (|value| > ~1e57) leaves buf unspecified: never write it. The
+  // readers refuse magnitudes beyond 1e15 (formats/magnitude.hpp), so this is a caller's bug.
+  if (r.ec != std::errc()) throw std::out_of_range("G-code number out of range: " + std::to_string(value));
   std::string s(buf, r.ptr);
   if (s.find('.') != std::string::npos) {
     while (s.back() == '0') s.pop_back();

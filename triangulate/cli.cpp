@@ -1,8 +1,11 @@
 // triangulate's options (see cli.hpp).
 #include "triangulate/cli.hpp"
 
+#include <algorithm>
 #include <map>
+#include <set>
 
+#include "formats/camera_bounds.hpp"
 #include "formats/error.hpp"
 #include "formats/text.hpp"
 #include "formats/tool.hpp"
@@ -59,6 +62,13 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--report", c.report, "Write the report as JSON here (it also goes to stderr as text)");
   app.add_option("--colmap", c.colmap, "Write a COLMAP text model (cameras.txt, images.txt, points3D.txt) into this folder");
   app.add_option("--refined-camera", c.refined_camera, "Write the camera.yaml after --refine-intrinsics here");
+  app.add_option("--preview", c.preview,
+                 "Write a PNG of the points (coloured by quality) and the cameras, oblique and from above, here");
+  app.add_option("--preview-colour", c.preview_options.colour_by,
+                 "Preview colour: rms = reprojection RMS per point (px), sigma = its uncertainty (mm)")
+      ->check(CLI::IsMember({"rms", "sigma"}))->capture_default_str();
+  app.add_option("--preview-width-px", c.preview_options.width_px, "Preview width (the height is half of it)")
+      ->check(CLI::Range(400, 8000))->capture_default_str();
 
   const std::string scale = "Scale without control points";
   app.add_option("--scale-bars", c.scale_bars, "Scale bars CSV (point_a,point_b,distance_mm[,sigma_mm])")->group(scale);
@@ -145,6 +155,8 @@ ReconstructOptions to_options(const Cli& c) {
   if (!c.refined_camera.empty() && o.bundle.refine_intrinsics == IntrinsicsRefinement::None) {
     throw UsageError("--refined-camera needs --refine-intrinsics");
   }
+  if (c.preview == "-") throw UsageError("--preview writes a PNG file, never to stdout");
+  if (!c.preview.empty()) validate(c.preview_options);
   int to_stdout = 0;
   for (const std::string* p : {&c.output, &c.poses, &c.report, &c.refined_camera}) to_stdout += *p == "-" ? 1 : 0;
   if (c.output.empty()) ++to_stdout;
@@ -161,8 +173,18 @@ ReconstructInput read_input(const Cli& c) {
   in.camera = read_camera_yaml(*tool::open_input(c.camera), in.camera_source);
   in.tracks_source = tool::source_name(c.tracks);
   in.tracks = read_tracks(*tool::open_input(c.tracks), in.tracks_source);
+  check_inside_camera_image(in.tracks, in.tracks_source, in.camera, in.camera_source);
   if (!c.control_points.empty()) {
     in.control_points = read_control_points(*tool::open_input(c.control_points), tool::source_name(c.control_points));
+    // A control file none of whose points was measured is the wrong file (docs/errors.md).
+    std::set<TrackId> ids;
+    for (const auto& t : in.tracks) ids.insert(t.track_id);
+    if (!in.tracks.empty() && !in.control_points.empty() && std::none_of(in.control_points.begin(), in.control_points.end(),
+                                                   [&](const ControlPoint& p) { return ids.count(p.point_id) > 0; })) {
+      throw InputError(tool::source_name(c.control_points), 0,
+                       "none of its " + std::to_string(in.control_points.size()) + " control points is a track of " +
+                           in.tracks_source + ": check the point ids");
+    }
   }
   if (!c.scale_bars.empty()) {
     in.scale_bars = read_scale_bars(*tool::open_input(c.scale_bars), tool::source_name(c.scale_bars));

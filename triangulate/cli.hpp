@@ -7,6 +7,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "triangulate/preview.hpp"
 #include "triangulate/reconstruct.hpp"
 
 namespace photomill::triangulate {
@@ -22,6 +23,8 @@ struct Cli {
   std::string report;
   std::string colmap;
   std::string refined_camera;
+  std::string preview;            // PNG of the cloud and the cameras
+  PreviewOptions preview_options;
   std::string loss = "huber";
   std::string solver = "auto";
   std::string refine_intrinsics = "none";

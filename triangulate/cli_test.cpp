@@ -1,11 +1,14 @@
 // Golden command-line cases for triangulate (after PROJ's test_cct.yaml): bad inputs name the
 // file and line and leave no output; degenerate input is explained; a good run writes every
 // output, readable by photomill's own readers; stdin/stdout work as a filter.
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 
 #include <gtest/gtest.h>
+
+#include <opencv2/imgcodecs.hpp>
 
 #include "formats/camera.hpp"
 #include "formats/point_cloud.hpp"
@@ -61,12 +64,15 @@ class TriangulateCliError : public ::testing::TestWithParam<ErrorCase> {};
 TEST_P(TriangulateCliError, FailsCleanly) {
   SceneFiles f;
   const ErrorCase& c = GetParam();
-  const auto r = run_tool("triangulate", c.args(f));
+  auto args = c.args(f);
+  if (std::find(args.begin(), args.end(), "--preview") == args.end()) args.insert(args.end(), {"--preview", f.path("preview.png")});
+  const auto r = run_tool("triangulate", args);
   EXPECT_EQ(r.exit_code, c.exit_code) << r.err;
   EXPECT_NE(r.err.find(c.stderr_has), std::string::npos) << r.err;
   EXPECT_EQ(r.out, "");
   EXPECT_FALSE(fs::exists(f.path("cloud.ply"))) << "no output may be left behind";
   EXPECT_FALSE(fs::exists(f.path("poses.csv")));
+  EXPECT_FALSE(fs::exists(f.path("preview.png")));
 }
 
 const std::vector<ErrorCase> kErrors = {
@@ -97,6 +103,9 @@ const std::vector<ErrorCase> kErrors = {
     {"two_outputs_on_stdout",
      [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "-c", f.path("camera.yaml"), "--arbitrary-scale", "--poses", "-"}; },
      2, "stdout"},
+    {"preview_to_stdout",
+     [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "-c", f.path("camera.yaml"), "--control-points", f.path("control.csv"), "-o", f.path("cloud.ply"), "--preview", "-"}; },
+     2, "never to stdout"},
     {"bad_loss",
      [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "-c", f.path("camera.yaml"), "--loss", "tukey"}; },
      2, "--loss"},
@@ -147,6 +156,31 @@ TEST(TriangulateCli, WritesEveryOutput) {
     EXPECT_NE(report.find(key), std::string::npos) << key << " in " << report;
   }
   for (const char* file : {"cameras.txt", "images.txt", "points3D.txt"}) EXPECT_TRUE(fs::exists(f.path("model/") + file)) << file;
+}
+
+// --preview: a PNG of the cloud and the cameras, only when the run succeeds (FailsCleanly above).
+TEST(TriangulateCli, WritesAPreview) {
+  SceneFiles f;
+  const auto r = run_tool("triangulate", {f.path("tracks.csv"), "-c", f.path("camera.yaml"), "--control-points",
+                                          f.path("control.csv"), "-o", f.path("cloud.ply"), "--preview",
+                                          f.path("preview.png"), "--preview-colour", "sigma"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out, "");
+  const cv::Mat img = cv::imread(f.path("preview.png"), cv::IMREAD_COLOR);
+  ASSERT_FALSE(img.empty()) << "preview.png is not an image";
+  EXPECT_EQ(img.cols, 1600);
+  EXPECT_EQ(img.rows, 800);
+  int coloured = 0;  // the points' colours (viridis) and the cameras' orange edges
+  for (int y = 0; y < img.rows; ++y) {
+    for (int x = 0; x < img.cols; ++x) {
+      const cv::Vec3b c = img.at<cv::Vec3b>(y, x);
+      coloured += std::max({c[0], c[1], c[2]}) - std::min({c[0], c[1], c[2]}) > 60 ? 1 : 0;
+    }
+  }
+  EXPECT_GT(coloured, 5000);
+  for (const auto& e : fs::directory_iterator(f.path(""))) {
+    EXPECT_EQ(e.path().filename().string().find(".tmp."), std::string::npos) << "temporary left: " << e.path();
+  }
 }
 
 TEST(TriangulateCli, WorksAsAFilter) {

@@ -1,6 +1,7 @@
 // triangulate: camera poses, 3D points and bundle adjustment. Reads tracks (file or stdin), the
 // camera and the datum (control points, scale bars or a marker side); writes the point cloud
-// (PLY, -o or stdout), and on request the poses CSV, a JSON report and a COLMAP text model.
+// (PLY, -o or stdout), and on request the poses CSV, a JSON report, a COLMAP text model and a
+// PNG preview.
 // The report also goes to stderr. See docs/triangulate.md.
 #include "formats/log.hpp"
 #include "formats/tool.hpp"
@@ -28,15 +29,16 @@ int main(int argc, char** argv) {
         write_ply(cloud.stream(), triangulate::make_point_cloud(result),
                   cli.ply_encoding == "ascii" ? PlyEncoding::Ascii : PlyEncoding::BinaryLittleEndian,
                   "photomill triangulate, units mm");
-        std::optional<tool::OutputFile> poses, report, camera;
+        std::optional<tool::OutputFile> poses, report, camera, preview;
         if (!cli.poses.empty()) write_poses(poses.emplace(cli.poses).stream(), triangulate::registered_poses(result));
         if (!cli.report.empty()) triangulate::write_report_json(report.emplace(cli.report).stream(), result.report);
         if (!cli.refined_camera.empty()) write_camera_yaml(camera.emplace(cli.refined_camera).stream(), result.camera);
+        if (!cli.preview.empty()) triangulate::write_preview(preview.emplace(cli.preview).stream(), result, cli.preview_options);
         triangulate::ColmapModelFiles colmap(cli.colmap);
         if (!cli.colmap.empty()) colmap.write(result);
 
         cloud.commit();
-        for (auto* f : {&poses, &report, &camera}) {
+        for (auto* f : {&poses, &report, &camera, &preview}) {
           if (*f) (*f)->commit();
         }
         colmap.commit();

@@ -1,0 +1,26 @@
+// Checks an image file before a decoder sees it, so that every bad image gets one clear line
+// (docs/errors.md) instead of OpenCV's warnings and libpng/libjpeg's messages on stderr, and a
+// file cut short is refused instead of decoded with a grey tail. Standard library only: the
+// callers decode with OpenCV afterwards.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace photomill {
+
+// The most pixels an image may claim: 2^28 (268 Mpixel; the largest phone sensors have 200).
+// A header claiming more is junk or hostile, and decoding it would allocate that much first.
+inline constexpr std::uint64_t kMaxImagePixels = std::uint64_t{1} << 28;
+
+// Throws InputError(path, 0, reason) unless `path` names a regular, non-empty file whose content
+// is complete for its format and within kMaxImagePixels: a PNG needs its IDAT data and IEND
+// chunk, a JPEG its end-of-image marker (data appended after it are allowed). Other formats
+// (TIFF, BMP, ...) are left to the decoder.
+void check_image_file(const std::string& path);
+
+// True if `path` exists (any kind of file): callers that may run where the images are not
+// (calib reading image sizes) ask before check_image_file.
+bool image_file_exists(const std::string& path);
+
+}  // namespace photomill

@@ -1,0 +1,135 @@
+// triangulate's PNG preview (preview.hpp): it decodes, has the asked size, shows the points in
+// colour in both views and the cameras, keeps framing the scene when a wild point or a far camera
+// is added, and refuses an empty cloud. The command-line side is in cli_test.cpp.
+#include "triangulate/preview.hpp"
+
+#include <gtest/gtest.h>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "formats/error.hpp"
+#include "triangulate/test_scene.hpp"
+
+namespace photomill::triangulate {
+namespace {
+
+// The truth of the test scene as make_point_cloud would write it: plate points are control
+// points; reprojection RMS and sigma vary over the points.
+PointCloud truth_cloud(const test::SceneTruth& truth) {
+  PointCloud cloud;
+  std::vector<double> rms, sigma, control;
+  for (const auto* set : {&truth.plate_points, &truth.part_points}) {
+    for (const ControlPoint& p : *set) {
+      cloud.points_mm.push_back(p.xyz_mm);
+      rms.push_back(0.01 + 0.0005 * static_cast<double>(cloud.points_mm.size() % 100));
+      sigma.push_back(0.002 + 0.0001 * static_cast<double>(cloud.points_mm.size() % 50));
+      control.push_back(set == &truth.plate_points ? 1 : 0);
+    }
+  }
+  cloud.properties = {{"reproj_rms_px", PlyScalar::Float32, rms},
+                      {"sigma_mm", PlyScalar::Float64, sigma},
+                      {"control", PlyScalar::UInt8, control}};
+  return cloud;
+}
+
+cv::Mat decode(const std::vector<std::uint8_t>& png) { return cv::imdecode(png, cv::IMREAD_COLOR); }
+
+// The two view panels of a preview `width_px` wide: left of the colour bar, above the text.
+cv::Rect panel_rect(int width_px, int k) { return {k * ((width_px - 120) / 2), 0, (width_px - 120) / 2, width_px / 2 - 48}; }
+cv::Rect panels_rect(int width_px) { return {0, 0, 2 * ((width_px - 120) / 2), width_px / 2 - 48}; }
+
+// Pixels of a clearly saturated colour (the points' viridis colours, the axes, the frusta's top
+// edges) in a region.
+int coloured_in(const cv::Mat& img, const cv::Rect& r) {
+  int n = 0;
+  for (int y = r.y; y < r.y + r.height; ++y) {
+    for (int x = r.x; x < r.x + r.width; ++x) {
+      const cv::Vec3b c = img.at<cv::Vec3b>(y, x);
+      n += std::max({c[0], c[1], c[2]}) - std::min({c[0], c[1], c[2]}) > 60 ? 1 : 0;
+    }
+  }
+  return n;
+}
+
+// Dark pixels (camera frusta and labels, text, axes) in one panel.
+int dark_in(const cv::Mat& img, const cv::Rect& r) {
+  int n = 0;
+  for (int y = r.y; y < r.y + r.height; ++y) {
+    for (int x = r.x; x < r.x + r.width; ++x) {
+      const cv::Vec3b c = img.at<cv::Vec3b>(y, x);
+      n += c[0] < 80 && c[1] < 80 && c[2] < 80 ? 1 : 0;
+    }
+  }
+  return n;
+}
+
+struct PreviewCase {
+  const char* colour_by;
+  int width_px;
+};
+void PrintTo(const PreviewCase& c, std::ostream* os) { *os << c.colour_by << "_" << c.width_px; }
+
+class Preview : public ::testing::TestWithParam<PreviewCase> {};
+
+TEST_P(Preview, ShowsPointsAndCameras) {
+  const test::SceneTruth truth = test::make_scene({});
+  const PointCloud cloud = truth_cloud(truth);
+  PreviewOptions o;
+  o.colour_by = GetParam().colour_by;
+  o.width_px = GetParam().width_px;
+
+  const cv::Mat img = decode(render_preview_png(cloud, truth.poses, truth.camera, o));
+  ASSERT_FALSE(img.empty()) << "not a PNG OpenCV can read";
+  EXPECT_EQ(img.cols, o.width_px);
+  EXPECT_EQ(img.rows, o.width_px / 2);
+  cv::Scalar mean, stddev;
+  cv::meanStdDev(img, mean, stddev);
+  EXPECT_GT(stddev[0] + stddev[1] + stddev[2], 30) << "blank picture";
+
+  // Points in colour in each of the two panels (the axes triad alone is ~200 px).
+  const cv::Mat bare = decode(render_preview_png(cloud, {}, truth.camera, o));
+  for (int k = 0; k < 2; ++k) {
+    EXPECT_GT(coloured_in(bare, panel_rect(o.width_px, k)), 1000 * o.width_px / 1600) << "panel " << k;
+  }
+  // The cameras add dark frustum lines to the oblique view (the top view is framed on the points).
+  const cv::Rect oblique = panel_rect(o.width_px, 0);
+  EXPECT_GT(dark_in(img, oblique), dark_in(bare, oblique) + 500) << "no camera drawn";
+}
+
+INSTANTIATE_TEST_SUITE_P(Triangulate, Preview,
+                         ::testing::Values(PreviewCase{"rms", 1600}, PreviewCase{"sigma", 1600}, PreviewCase{"rms", 800}));
+
+// One wild point far away and one camera far away must not shrink the scene to a dot: the
+// framing follows the bulk of the points and the cameras near them.
+TEST(Preview, FramesTheSceneRobustly) {
+  const test::SceneTruth truth = test::make_scene({});
+  const PointCloud cloud = truth_cloud(truth);
+  const cv::Rect panels = panels_rect(PreviewOptions{}.width_px);
+  const int base = coloured_in(decode(render_preview_png(cloud, {}, truth.camera)), panels);
+
+  PointCloud wild = cloud;
+  wild.points_mm.emplace_back(1e5, -2e5, 3e4);
+  for (auto& p : wild.properties) p.values.push_back(p.values.back());
+  std::vector<Pose> far = {truth.poses.front()};
+  far.front().cam_from_world_translation_mm = Eigen::Vector3d(0, 0, 1e6);
+  const int with_wild = coloured_in(decode(render_preview_png(wild, far, truth.camera)), panels);
+  EXPECT_GT(with_wild, base * 8 / 10) << "coloured pixels " << with_wild << " against " << base;
+  EXPECT_LT(with_wild, base * 12 / 10) << "coloured pixels " << with_wild << " against " << base;
+}
+
+TEST(Preview, RefusesAnEmptyCloud) {
+  const test::SceneTruth truth = test::make_scene({});
+  EXPECT_THROW(render_preview_png(PointCloud{}, truth.poses, truth.camera), GeometryError);
+}
+
+TEST(Preview, RejectsBadOptions) {
+  PreviewOptions o;
+  o.colour_by = "views";
+  EXPECT_THROW(validate(o), UsageError);
+  o = {};
+  o.width_px = 100;
+  EXPECT_THROW(validate(o), UsageError);
+}
+
+}  // namespace
+}  // namespace photomill::triangulate
