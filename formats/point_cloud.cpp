@@ -322,7 +322,9 @@ PointCloud read_ply(std::istream& in, const std::string& source, PointCloudLimit
         } else {
           double v = 0;
           ok = bin.read(p.type, v);
-          record[k] = v;
+          // Only the vertex element's values are kept: `record` has its size, and an element
+          // before it may have more properties (a heap overflow found by fuzzing).
+          if (is_vertex) record[k] = v;
         }
         if (!ok) {
           throw InputError(source, 0, "truncated: element '" + e.name + "' promises " +

@@ -151,6 +151,20 @@ TEST(Ply, ReadsBigEndianAndSkipsOtherElementsAndLists) {
   EXPECT_EQ(c.find("red")->values[0], 255);
 }
 
+// Found by fuzzing: an element before 'vertex' with more properties than the vertex element wrote
+// its values past the end of the vertex record (heap overflow under ASan).
+TEST(Ply, AnEarlierElementWithMorePropertiesThanTheVertexIsSkipped) {
+  std::string text = "ply\nformat binary_little_endian 1.0\nelement face 2\nproperty double a\nproperty double b\n"
+                     "property double c\nproperty double d\nproperty double e\nelement vertex 1\nproperty float x\n"
+                     "property float y\nproperty float z\nend_header\n";
+  text += std::string(2 * 5 * sizeof(double), '\x01');
+  for (const float f : {1.0f, 2.0f, 3.0f}) text += std::string(reinterpret_cast<const char*>(&f), sizeof f);
+  std::istringstream in(text);
+  const PointCloud c = read_ply(in, "faces_first.ply");
+  ASSERT_EQ(c.points_mm.size(), 1u);
+  EXPECT_EQ(c.points_mm[0], Eigen::Vector3d(1, 2, 3));
+}
+
 TEST(Ply, AnIndependentReaderSeesTheSameBinaryValues) {
   if (std::system("python3 --version > /dev/null 2>&1") != 0) GTEST_SKIP() << "python3 not available";
   test::TempDir dir;
