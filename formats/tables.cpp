@@ -86,14 +86,18 @@ void write_control_points(std::ostream& out, const std::vector<ControlPoint>& po
   }
 }
 
-// --- tracks: track_id,image,u_px,v_px -------------------------------------------------------
+// --- tracks: track_id,image,u_px,v_px[,size_px] ---------------------------------------------
 std::vector<TrackObservation> read_tracks(std::istream& in, const std::string& source) {
-  CsvReader csv(in, source, {"track_id", "image", "u_px", "v_px"});
+  CsvReader csv(in, source, {"track_id", "image", "u_px", "v_px"}, {"size_px"});
   std::vector<TrackObservation> out;
   std::set<std::pair<TrackId, std::string>> seen;
   while (csv.next()) {
     TrackObservation t{csv.non_negative_integer(0), std::string(csv.text(1)), csv.number(2),
                        csv.number(3)};
+    if (csv.has(4)) {
+      t.size_px = csv.number(4);
+      if (!(*t.size_px > 0)) csv.fail("size_px must be positive");
+    }
     if (!seen.emplace(t.track_id, t.image).second) {
       csv.fail("track " + std::to_string(t.track_id) + " observed twice in image '" + t.image + "'");
     }
@@ -103,9 +107,15 @@ std::vector<TrackObservation> read_tracks(std::istream& in, const std::string& s
 }
 
 void write_tracks(std::ostream& out, const std::vector<TrackObservation>& tracks) {
-  write_csv_row(out, {"track_id", "image", "u_px", "v_px"});
+  bool any_size = false;
+  for (const auto& t : tracks) any_size = any_size || t.size_px.has_value();
+  std::vector<std::string> header{"track_id", "image", "u_px", "v_px"};
+  if (any_size) header.push_back("size_px");
+  write_csv_row(out, header);
   for (const auto& t : tracks) {
-    write_csv_row(out, {id(t.track_id), image_name(t.image), num(t.u_px), num(t.v_px)});
+    std::vector<std::string> row{id(t.track_id), image_name(t.image), num(t.u_px), num(t.v_px)};
+    if (any_size) row.push_back(t.size_px ? num(*t.size_px) : "");
+    write_csv_row(out, row);
   }
 }
 

@@ -46,6 +46,9 @@ struct TrackObservation {
   std::string image;
   double u_px = 0;
   double v_px = 0;
+  // Optional column size_px: the detected feature's size (a SIFT keypoint's diameter), which
+  // triangulate uses to weight the observation (a feature's position error grows with its size).
+  std::optional<double> size_px = std::nullopt;
   bool operator==(const TrackObservation&) const = default;
 };
 

@@ -40,7 +40,7 @@ struct ControlPointsFormat {
 
 struct TracksFormat {
   using T = std::vector<TrackObservation>;
-  static T sample() { return {{5, "a.jpg", 1.5, 2.5}, {5, "b.jpg", 0.0, 1e-7}, {9, "a.jpg", 1999.999999, 0.5}}; }
+  static T sample() { return {{5, "a.jpg", 1.5, 2.5, 3.25}, {5, "b.jpg", 0.0, 1e-7}, {9, "a.jpg", 1999.999999, 0.5, 0.1}}; }
   static T read(std::istream& in, const std::string& s) { return read_tracks(in, s); }
   static void write(std::ostream& out, const T& v) { write_tracks(out, v); }
   static std::string header() { return "track_id,image,u_px,v_px"; }
@@ -175,6 +175,19 @@ TEST(Poses, NonUnitQuaternionIsRejectedAndCentreIsMinusRtT) {
   Pose p{"a", Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ())), {1, 2, 3}};
   const Eigen::Vector3d c = p.centre_mm();
   EXPECT_TRUE((p.rotation() * c + p.cam_from_world_translation_mm).norm() < 1e-12);
+}
+
+TEST(Tracks, SizeColumnIsOptionalPerRowAndPositive) {
+  const auto v = parse<TracksFormat>("track_id,image,u_px,v_px,size_px\n1,a,0,0,\n1,b,0,0,4.5\n");
+  ASSERT_EQ(v.size(), 2u);
+  EXPECT_FALSE(v[0].size_px);
+  EXPECT_EQ(v[1].size_px, 4.5);
+  EXPECT_NE(error_of<TracksFormat>("track_id,image,u_px,v_px,size_px\n1,a,0,0,0\n").find("t.csv:2: size_px must be positive"), std::string::npos);
+  EXPECT_NE(error_of<TracksFormat>("track_id,image,u_px,v_px,size_px\n1,a,0,0,-2\n").find("t.csv:2: size_px must be positive"), std::string::npos);
+  // Written only when some observation has a size.
+  std::ostringstream out;
+  write_tracks(out, {{1, "a", 0, 0}});
+  EXPECT_EQ(out.str().substr(0, out.str().find('\n')), "track_id,image,u_px,v_px");
 }
 
 TEST(ControlPoints, SigmaColumnIsOptionalPerRow) {

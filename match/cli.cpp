@@ -5,8 +5,11 @@
 #include <filesystem>
 #include <sstream>
 
+#include <opencv2/imgcodecs.hpp>
+
 #include "formats/camera_bounds.hpp"
 #include "formats/error.hpp"
+#include "formats/image.hpp"
 #include "formats/log.hpp"
 #include "formats/tool.hpp"
 
@@ -41,6 +44,11 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--ratio", o.ratio, "Lowe's ratio test: best < ratio * second best descriptor distance")
       ->group(feat)->capture_default_str()->check(CLI::Range(0.1, 1.0));
   app.add_flag("--no-mutual", c.no_mutual, "Skip the mutual-best check")->group(feat);
+  app.add_flag("!--no-guided", o.guided,
+               "With --poses, still search all features by kd-tree instead of along the epipolar lines")
+      ->group(feat);
+  app.add_option("--guided-ratio", o.guided_ratio, "Ratio test of guided matching (among the epipolar band's features)")
+      ->group(feat)->capture_default_str()->check(CLI::Range(0.1, 1.0));
   app.add_option("--flann-checks", o.flann_checks, "FLANN kd-tree leaves visited per query")
       ->group(feat)->capture_default_str()->check(CLI::Range(1, 100000));
   app.add_option("--exhaustive-max-images", o.exhaustive_max_images, "Match all pairs up to this many images ...")
@@ -53,6 +61,23 @@ void add_options(CLI::App& app, Cli& c) {
       ->group(feat)->capture_default_str()->check(CLI::Range(2, 100000));
   app.add_option("--feature-id-offset", o.feature_track_offset, "First track id of natural-feature tracks")
       ->group(feat)->capture_default_str()->check(CLI::Range(std::int64_t{0}, std::int64_t{1} << 53));
+  const std::string lsm = "Least-squares matching (refines natural features to the pixel's hundredths)";
+  app.add_option("--refine", c.refine,
+                 "lsm: align each feature observation's grey values to its track's reference observation "
+                 "(needs the images named in the .feat files); none: keep SIFT's positions and write their size_px")
+      ->group(lsm)->capture_default_str()->check(CLI::IsMember({"lsm", "none"}));
+  app.add_option("--image-dir", c.image_dir, "Read the images named in the .feat files from this folder (by file name)")
+      ->group(lsm);
+  app.add_option("--lsm-window-per-size", c.lsm.window_per_size, "Window half-width per px of the reference feature's size")
+      ->group(lsm)->capture_default_str()->check(CLI::Range(0.1, 10.0));
+  app.add_option("--lsm-min-half-window-px", c.lsm.min_half_window_px, "... at least this")
+      ->group(lsm)->capture_default_str()->check(CLI::Range(2, 100));
+  app.add_option("--lsm-max-half-window-px", c.lsm.max_half_window_px, "... at most this")
+      ->group(lsm)->capture_default_str()->check(CLI::Range(2, 100));
+  app.add_option("--lsm-max-shift-px", c.lsm.max_shift_px, "Refuse an alignment that moves the point farther")
+      ->group(lsm)->capture_default_str()->check(CLI::Range(0.01, 100.0));
+  app.add_option("--lsm-min-correlation", c.lsm.min_correlation, "Refuse an alignment whose windows correlate less")
+      ->group(lsm)->capture_default_str()->check(CLI::Range(-1.0, 1.0));
   app.add_option("-j,--jobs", o.jobs, "Image pairs matched in parallel (0: all cores)")
       ->capture_default_str()->check(CLI::Range(0, 1024));
 }
@@ -104,6 +129,25 @@ MatchInputs read_inputs(Cli& c) {
     throw InputError(sources, 0, "no observations: nothing to match");
   }
   if (!c.poses.empty()) in.poses = read_poses(*tool::open_input(c.poses), tool::source_name(c.poses));
+  if (c.refine == "lsm" && !in.features.empty()) {
+    if (c.lsm.min_half_window_px > c.lsm.max_half_window_px) {
+      throw UsageError("--lsm-min-half-window-px is larger than --lsm-max-half-window-px");
+    }
+    c.options.refine = c.lsm;
+    in.grey_images.resize(in.features.size());
+    for (std::size_t k = 0; k < in.features.size(); ++k) {
+      const std::string& named = in.features[k].image;
+      const std::string path = c.image_dir.empty() ? named : (fs::path(c.image_dir) / fs::path(named).filename()).string();
+      if (!image_file_exists(path)) {
+        throw InputError(path, 0, "image named in a features file not found (--refine lsm reads the photos: run match "
+                                  "where detect ran, give --image-dir, or use --refine none)");
+      }
+      check_image_file(path);
+      const cv::Mat grey = cv::imread(path, cv::IMREAD_GRAYSCALE);
+      if (grey.empty()) throw InputError(path, 0, "not a readable image");
+      grey.convertTo(in.grey_images[k], CV_32F);
+    }
+  }
   return in;
 }
 
@@ -143,6 +187,17 @@ void report(const MatchResult& r, const Cli& c) {
               std::to_string(r.feature_unions.conflicts) + " matches refused (two features of one image), " +
               std::to_string(r.feature_observations_voted_out) + " observations voted out; ids from " +
               std::to_string(c.options.feature_track_offset));
+  }
+  if (c.options.refine) {
+    std::string why;
+    std::size_t refused = 0;
+    for (const auto& [reason, count] : r.refine_refused) {
+      why += (why.empty() ? "" : ", ") + std::to_string(count) + " " + reason;
+      refused += count;
+    }
+    log::info("least-squares matching: " + std::to_string(r.refined_observations) + " observations kept, " +
+              std::to_string(refused) + " refused" + (why.empty() ? "" : " (" + why + ")") + ", " +
+              std::to_string(r.refine_tracks_dropped) + " tracks left too short");
   }
   std::string hist = "track lengths:";
   for (const auto& [length, count] : r.track_lengths) hist += " " + std::to_string(length) + ": " + std::to_string(count) + ",";

@@ -18,6 +18,9 @@ struct Cli {
   std::string poses;
   std::string output = "-";
   bool no_mutual = false;
+  std::string refine = "lsm";       // lsm | none
+  LsmOptions lsm;
+  std::string image_dir;            // where the images named in .feat files are (default: as named)
   MatchOptions options;
 };
 

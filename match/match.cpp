@@ -5,12 +5,16 @@
 #include <atomic>
 #include <cmath>
 #include <exception>
+#include <limits>
+#include <map>
 #include <memory>
 #include <mutex>
+#include <numbers>
 #include <set>
 #include <thread>
 #include <unordered_map>
 
+#include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 #include <opencv2/flann.hpp>
 
@@ -20,6 +24,57 @@ namespace photomill::match {
 
 namespace {
 
+// Features of one image in square cells of `cell` px over their (undistorted) bounding box, for
+// the epipolar band search of guided matching.
+struct FeatureGrid {
+  double x0 = 0, y0 = 0, cell = 8;
+  int nx = 0, ny = 0;
+  std::vector<std::vector<int>> cells;
+  void build(const std::vector<Eigen::Vector2d>& pts, double cell_px) {
+    cell = cell_px;
+    if (pts.empty()) return;
+    double x1 = pts[0].x(), y1 = pts[0].y();
+    x0 = x1;
+    y0 = y1;
+    for (const auto& p : pts) {
+      x0 = std::min(x0, p.x());
+      y0 = std::min(y0, p.y());
+      x1 = std::max(x1, p.x());
+      y1 = std::max(y1, p.y());
+    }
+    nx = static_cast<int>((x1 - x0) / cell) + 1;
+    ny = static_cast<int>((y1 - y0) / cell) + 1;
+    cells.assign(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny), {});
+    for (std::size_t k = 0; k < pts.size(); ++k) {
+      const int cx = static_cast<int>((pts[k].x() - x0) / cell), cy = static_cast<int>((pts[k].y() - y0) / cell);
+      cells[static_cast<std::size_t>(cy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(cx)].push_back(static_cast<int>(k));
+    }
+  }
+  // Calls visit(k) for every feature in the cells that a band of half-width `band` around the
+  // line l (l0 x + l1 y + l2 = 0, (l0, l1) a unit normal) touches (and a few more).
+  template <class Visit>
+  void along_line(const Eigen::Vector3d& l, double band, Visit&& visit) const {
+    if (cells.empty()) return;
+    const bool steep = std::abs(l.x()) > std::abs(l.y());  // walk along y when the line is steep
+    const int n_walk = steep ? ny : nx, n_across = steep ? nx : ny;
+    const double w0 = steep ? y0 : x0, a0 = steep ? x0 : y0;
+    const double lw = steep ? l.y() : l.x(), la = steep ? l.x() : l.y();
+    // On the line: across = -(lw * walk + l2) / la; the band adds band / |la| either side.
+    const double reach = band / std::abs(la);
+    for (int i = 0; i < n_walk; ++i) {
+      const double wa = w0 + i * cell, wb = wa + cell;
+      double c1 = -(lw * wa + l.z()) / la, c2 = -(lw * wb + l.z()) / la;
+      if (c1 > c2) std::swap(c1, c2);
+      const int j0 = std::max(0, static_cast<int>(std::floor((c1 - reach - a0) / cell)));
+      const int j1 = std::min(n_across - 1, static_cast<int>(std::floor((c2 + reach - a0) / cell)));
+      for (int j = j0; j <= j1; ++j) {
+        const int cx = steep ? j : i, cy = steep ? i : j;
+        for (int k : cells[static_cast<std::size_t>(cy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(cx)]) visit(k);
+      }
+    }
+  }
+};
+
 struct ImageData {
   std::vector<Eigen::Vector2d> coded_px;        // as observed
   std::vector<Eigen::Vector2d> coded_ideal;     // undistorted
@@ -27,8 +82,15 @@ struct ImageData {
   std::unordered_map<PointId, std::size_t> coded_index;
   const FeatureSet* features = nullptr;
   std::vector<Eigen::Vector2d> feature_ideal;   // undistorted keypoints
+  // SIFT gives a blob with several dominant orientations one keypoint per orientation, all at
+  // the same position: canonical[k] is the first keypoint at keypoint k's position, so such
+  // copies join one track instead of making parallel tracks of the same point.
+  std::vector<int> canonical;
+  std::unordered_map<int, std::vector<int>> copies;  // canonical -> all keypoints at its position
+  const cv::Mat* grey = nullptr;                     // for least-squares matching
   cv::Mat descriptors;                          // CV_32F, one row per keypoint
   std::unique_ptr<cv::flann::Index> index;      // over `descriptors`
+  FeatureGrid grid;                             // over `feature_ideal` (guided matching)
 };
 
 // Runs `work(k)` for k in [0, n) on `jobs` threads; rethrows the first exception.
@@ -101,6 +163,73 @@ std::vector<FeatureMatch> match_descriptors(ImageData& a, ImageData& b, const Ma
   return out;
 }
 
+// Guided matching with a known F: each feature of `a` is compared only with the features of `b`
+// within the epipolar band (Sampson distance <= threshold; Hartley & Zisserman sec. 11.9 "guided
+// matching"), the ratio test taken among those candidates, in both directions, with the mutual
+// check. The band holds ~50 of the ~20 000 features of a photo, so this is exact and much faster
+// than kd-tree search over all of them.
+std::vector<FeatureMatch> match_guided(const ImageData& a, const ImageData& b, const Eigen::Matrix3d& F,
+                                       const MatchOptions& o) {
+  std::vector<FeatureMatch> out;
+  const int na = a.descriptors.rows, nb = b.descriptors.rows;
+  if (na < 2 || nb < 2) return out;
+  const int dim = a.descriptors.cols;
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  // Best and second-best squared distances per feature, both directions.
+  std::vector<float> a1(static_cast<std::size_t>(na), kInf), a2(static_cast<std::size_t>(na), kInf);
+  std::vector<float> b1(static_cast<std::size_t>(nb), kInf), b2(static_cast<std::size_t>(nb), kInf);
+  std::vector<int> abest(static_cast<std::size_t>(na), -1), bbest(static_cast<std::size_t>(nb), -1);
+  const double thr = o.fit.threshold_px;
+  for (int i = 0; i < na; ++i) {
+    const Eigen::Vector2d& xa = a.feature_ideal[static_cast<std::size_t>(i)];
+    Eigen::Vector3d l = F * xa.homogeneous();
+    const double norm = l.head<2>().norm();
+    if (!(norm > 0)) continue;
+    l /= norm;
+    const float* da = a.descriptors.ptr<float>(i);
+    // Sampson distance <= thr implies a distance to the line of at most thr * sqrt(2) when the
+    // two epipolar gradients are alike; 2 thr leaves room, the exact test follows.
+    b.grid.along_line(l, 2 * thr, [&](int j) {
+      const Eigen::Vector2d& xb = b.feature_ideal[static_cast<std::size_t>(j)];
+      if (sampson_distance_px(F, xa, xb) > thr) return;
+      const float* db = b.descriptors.ptr<float>(j);
+      float d = 0;
+      for (int k = 0; k < dim; ++k) {
+        const float e = da[k] - db[k];
+        d += e * e;
+      }
+      const auto iu = static_cast<std::size_t>(i), ju = static_cast<std::size_t>(j);
+      if (d < a1[iu]) {
+        a2[iu] = a1[iu];
+        a1[iu] = d;
+        abest[iu] = j;
+      } else if (d < a2[iu]) {
+        a2[iu] = d;
+      }
+      if (d < b1[ju]) {
+        b2[ju] = b1[ju];
+        b1[ju] = d;
+        bbest[ju] = i;
+      } else if (d < b2[ju]) {
+        b2[ju] = d;
+      }
+    });
+  }
+  auto ratio = [](float d1, float d2) { return d2 > 0 && d2 < kInf ? std::sqrt(d1 / d2) : 1.0f; };
+  for (int i = 0; i < na; ++i) {
+    const auto iu = static_cast<std::size_t>(i);
+    const int j = abest[iu];
+    if (j < 0) continue;
+    const float rab = ratio(a1[iu], a2[iu]);
+    if (rab >= o.guided_ratio) continue;
+    const auto ju = static_cast<std::size_t>(j);
+    const float rba = ratio(b1[ju], b2[ju]);
+    if (o.mutual && (bbest[ju] != i || rba >= o.guided_ratio)) continue;
+    out.push_back({i, j, std::max(rab, o.mutual ? rba : 0.0f)});
+  }
+  return out;
+}
+
 struct PairWork {
   PairReport report;
   std::optional<Eigen::Matrix3d> F;
@@ -141,6 +270,7 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
     if (progress) progress(m);
   };
   if (!(o.ratio > 0 && o.ratio <= 1)) throw UsageError("--ratio must be in (0, 1]");
+  if (!(o.guided_ratio > 0 && o.guided_ratio <= 1)) throw UsageError("--guided-ratio must be in (0, 1]");
   if (!(o.fit.threshold_px > 0)) throw UsageError("--threshold-px must be positive");
   if (o.feature_track_offset < 0) throw UsageError("--feature-id-offset must be non-negative");
   if (!in.poses.empty() && !in.camera) throw UsageError("--poses needs --camera (F = K^-T [t]x R K^-1)");
@@ -179,6 +309,20 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
     }
     d.features = &fs;
   }
+  if (o.refine) {
+    if (in.grey_images.size() != in.features.size()) throw std::logic_error("match: refine needs one grey image per feature set");
+    for (std::size_t k = 0; k < in.features.size(); ++k) {
+      const cv::Mat& g = in.grey_images[k];
+      if (g.type() != CV_32FC1) throw std::logic_error("match: grey images must be CV_32FC1");
+      const FeatureSet& fs = in.features[k];
+      if (g.cols != fs.image_width_px || g.rows != fs.image_height_px) {
+        throw InputError(fs.image, 0, "image is " + std::to_string(g.cols) + "x" + std::to_string(g.rows) +
+                                          " px but its features file says " + std::to_string(fs.image_width_px) + "x" +
+                                          std::to_string(fs.image_height_px));
+      }
+      data[image_index.at(fs.image)].grey = &g;
+    }
+  }
   std::unordered_map<std::string, const Pose*> pose_of;
   for (const auto& p : in.poses) pose_of[p.image] = &p;
   if (!in.poses.empty()) {
@@ -195,6 +339,10 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
     }
   }
 
+  // With known poses the features are matched along epipolar lines (match_guided), otherwise by
+  // kd-tree search over all of them.
+  const bool guided = o.guided && !in.poses.empty();
+  constexpr double kGuidedCellPx = 8;  // grid cell: ~0.4 features per cell at 20 000 per photo
   // Undistort, and index the descriptors (in parallel over images).
   const Undistorter undistort(in.camera);
   say("indexing " + std::to_string(in.features.size()) + " feature sets");
@@ -203,12 +351,20 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
     d.coded_ideal = undistort.apply(d.coded_px);
     if (!d.features) return;
     std::vector<Eigen::Vector2d> kp;
-    for (const auto& k : d.features->keypoints) kp.emplace_back(k.x_px, k.y_px);
+    std::map<std::pair<double, double>, int> first_at;
+    for (const auto& k : d.features->keypoints) {
+      const int index = static_cast<int>(kp.size());
+      d.canonical.push_back(first_at.emplace(std::make_pair(k.x_px, k.y_px), index).first->second);
+      d.copies[d.canonical.back()].push_back(index);
+      kp.emplace_back(k.x_px, k.y_px);
+    }
     d.feature_ideal = undistort.apply(kp);
     const int rows = static_cast<int>(d.features->keypoints.size());
     cv::Mat(rows, d.features->descriptor_dim, CV_8U, const_cast<std::uint8_t*>(d.features->descriptors.data()))
         .convertTo(d.descriptors, CV_32F);
-    if (rows >= 2) {
+    if (guided) {
+      d.grid.build(d.feature_ideal, kGuidedCellPx);
+    } else if (rows >= 2) {
       // FLANN draws its random trees from OpenCV's thread-local RNG: seed it per image so the
       // trees, hence the matches, do not depend on which thread indexed which image before.
       cv::theRNG() = cv::RNG(0x9E3779B9u + static_cast<std::uint64_t>(i));
@@ -268,7 +424,12 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
     }
     w.report.coded_shared = static_cast<int>(pa.size());
     std::vector<FeatureMatch> matches;
-    if (a.index && b.index) matches = match_descriptors(a, b, o);
+    if (guided) {
+      w.F = fundamental_from_poses(in.camera->camera_matrix, *pose_of.at(result.images[ia]), *pose_of.at(result.images[ib]));
+      if (a.features && b.features) matches = match_guided(a, b, *w.F, o);
+    } else if (a.index && b.index) {
+      matches = match_descriptors(a, b, o);
+    }
     w.report.feature_matches = static_cast<int>(matches.size());
     for (const auto& m : matches) {
       pa.push_back(a.feature_ideal[static_cast<std::size_t>(m.a)]);
@@ -355,12 +516,16 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
     say("building feature tracks");
     std::vector<MatchEdge> edges;
     for (const auto& w : work) {
+      const ImageData& a = data[w.report.a];
+      const ImageData& b = data[w.report.b];
       for (const auto& m : w.inlier_matches) {
-        edges.push_back({{static_cast<int>(w.report.a), m.a}, {static_cast<int>(w.report.b), m.b}, m.cost});
+        edges.push_back({{static_cast<int>(w.report.a), a.canonical[static_cast<std::size_t>(m.a)]},
+                         {static_cast<int>(w.report.b), b.canonical[static_cast<std::size_t>(m.b)]}, m.cost});
       }
     }
     const auto tracks = build_tracks(std::move(edges), o.min_track_length, &result.feature_unions);
-    TrackId next_id = o.feature_track_offset;
+    const std::size_t min_length = std::max<std::size_t>(o.min_track_length, 2);
+    std::vector<std::vector<FeatureRef>> voted;
     for (const auto& t : tracks) {
       auto pos = [&](std::size_t k) {
         return data[static_cast<std::size_t>(t[k].image)].feature_ideal[static_cast<std::size_t>(t[k].feature)];
@@ -369,13 +534,102 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
         return agree(static_cast<std::size_t>(t[x].image), pos(x), static_cast<std::size_t>(t[y].image), pos(y));
       });
       result.feature_observations_voted_out += t.size() - kept.size();
-      if (kept.size() < std::max<std::size_t>(o.min_track_length, 2)) continue;
+      if (kept.size() < min_length) continue;
+      std::vector<FeatureRef> v;
+      for (std::size_t k : kept) v.push_back(t[k]);
+      voted.push_back(std::move(v));
+    }
+    auto keypoint = [&](const FeatureRef& f) -> const Keypoint& {
+      return data[static_cast<std::size_t>(f.image)].features->keypoints[static_cast<std::size_t>(f.feature)];
+    };
+    // Least-squares matching of one track: every observation against the one with the smallest
+    // feature (finest detail), which stays where SIFT put it and so names the surface point. The
+    // start is the similarity the two keypoints imply (size ratio, orientation difference); as
+    // OpenCV's angle sense and a blob's several orientations (copies) leave the rotation open, the
+    // candidate with the best window correlation starts the alignment.
+    auto refine_track = [&](const std::vector<FeatureRef>& t, const LsmOptions& lo, std::map<std::string, std::size_t>& refused) {
+      std::vector<std::optional<Eigen::Vector2d>> out(t.size());
+      std::size_t r = 0;
+      for (std::size_t j = 1; j < t.size(); ++j) {
+        if (keypoint(t[j]).size_px < keypoint(t[r]).size_px) r = j;
+      }
+      const ImageData& dr = data[static_cast<std::size_t>(t[r].image)];
+      const Keypoint& kr = keypoint(t[r]);
+      const Eigen::Vector2d ref(kr.x_px, kr.y_px);
+      out[r] = ref;
+      const int h = half_window_for(kr.size_px, lo);
+      for (std::size_t j = 0; j < t.size(); ++j) {
+        if (j == r) continue;
+        const ImageData& dj = data[static_cast<std::size_t>(t[j].image)];
+        const Keypoint& kj = keypoint(t[j]);
+        const Eigen::Vector2d start(kj.x_px, kj.y_px);
+        const double zoom = kr.size_px > 0 && kj.size_px > 0 ? kj.size_px / kr.size_px : 1.0;
+        std::vector<double> turns{0.0};
+        for (int a : dr.copies.at(t[r].feature)) {
+          for (int b : dj.copies.at(t[j].feature)) {
+            const double aa = dr.features->keypoints[static_cast<std::size_t>(a)].angle_deg;
+            const double ab = dj.features->keypoints[static_cast<std::size_t>(b)].angle_deg;
+            if (aa < 0 || ab < 0) continue;
+            const double turn = (ab - aa) * std::numbers::pi / 180;
+            turns.push_back(turn);
+            turns.push_back(-turn);
+          }
+        }
+        Eigen::Matrix2d best_A = zoom * Eigen::Matrix2d::Identity();
+        double best = -2;
+        for (double turn : turns) {
+          const Eigen::Matrix2d A = zoom * Eigen::Rotation2Dd(turn).toRotationMatrix();
+          const auto c = window_correlation(*dr.grey, ref, h, *dj.grey, A, start);
+          if (c && *c > best) {
+            best = *c;
+            best_A = A;
+          }
+        }
+        LsmFailure why = LsmFailure::None;
+        if (const auto fit = lsm_align(*dr.grey, ref, h, *dj.grey, best_A, start, lo, &why)) {
+          out[j] = fit->point_px;
+        } else {
+          ++refused[to_string(why)];
+        }
+      }
+      return out;
+    };
+    // Positions written per observation: the keypoint's, or the refined one.
+    std::vector<std::vector<std::optional<Eigen::Vector2d>>> refined(voted.size());
+    if (o.refine) {
+      say("least-squares matching of " + std::to_string(voted.size()) + " feature tracks");
+      std::vector<std::map<std::string, std::size_t>> refused(voted.size());
+      parallel_for(voted.size(), o.jobs, [&](std::size_t k) {
+        refined[k] = refine_track(voted[k], *o.refine, refused[k]);
+      });
+      for (const auto& r : refused) {
+        for (const auto& [why, count] : r) result.refine_refused[why] += count;
+      }
+    }
+    TrackId next_id = o.feature_track_offset;
+    for (std::size_t k = 0; k < voted.size(); ++k) {
+      const auto& t = voted[k];
+      std::size_t length = t.size();
+      if (o.refine) {
+        length = static_cast<std::size_t>(std::count_if(refined[k].begin(), refined[k].end(), [](const auto& p) { return p.has_value(); }));
+        if (length < min_length) {
+          ++result.refine_tracks_dropped;
+          continue;
+        }
+      }
       const TrackId id = next_id++;
       ++result.feature_tracks;
-      ++result.track_lengths[kept.size()];
-      for (std::size_t k : kept) {
-        const auto& kp = data[static_cast<std::size_t>(t[k].image)].features->keypoints[static_cast<std::size_t>(t[k].feature)];
-        result.tracks.push_back({id, result.images[static_cast<std::size_t>(t[k].image)], kp.x_px, kp.y_px});
+      ++result.track_lengths[length];
+      for (std::size_t j = 0; j < t.size(); ++j) {
+        const Keypoint& kp = keypoint(t[j]);
+        const std::string& image = result.images[static_cast<std::size_t>(t[j].image)];
+        if (o.refine) {
+          if (!refined[k][j]) continue;
+          ++result.refined_observations;
+          result.tracks.push_back({id, image, refined[k][j]->x(), refined[k][j]->y()});
+        } else {
+          result.tracks.push_back({id, image, kp.x_px, kp.y_px, kp.size_px > 0 ? std::optional<double>(kp.size_px) : std::nullopt});
+        }
       }
     }
   }

@@ -3,6 +3,7 @@
 // features on a rendered synth scene judged against the exact geometry, and golden CLI cases.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -180,46 +181,108 @@ TEST(Match, TooFewClicksToVerifyAreDroppedUnlessKept) {
 // Natural features on a rendered scene: six views of the part at 1000 x 750, noise 1 grey level,
 // JPEG 90; SIFT away from the markers; tracks judged against the exact surface.
 
-TEST(Match, NaturalFeatureTracksOnASynthScene) {
-  synth::SynthOptions o = synth::test::small_options();
-  o.camera = synth::test::small_camera(1000, 750, 1200);
-  o.views.count = 6;
-  o.render.noise_sigma = 1;
-  o.speckle_mm = 1.6;
-  o.seed = 21;
-  const synth::PartScene scene = synth::make_part_scene(o);
-  const synth::PartRayScene rays(scene);
-  const auto poses = synth::part_view_poses(o);
-  const auto dict = detect::MarkerDictionary::predefined(scene.dictionary);
+// One synth scene (7 views of 1000 x 750, noise 1, JPEG 90), detected once for every mode below.
+struct FeatureScene {
+  synth::SynthOptions o;
+  synth::PartScene scene;
+  std::vector<Pose> poses;
   MatchInputs in;
-  in.camera = o.camera;
-  int view = 0;
-  for (const Pose& pose : poses) {
-    const cv::Mat image = cv::imdecode(
-        synth::encode_image(synth::render(rays, o.camera, pose, o.render, static_cast<std::uint64_t>(view++)), "jpg", 90),
-        cv::IMREAD_GRAYSCALE);
-    const auto markers = detect::detect_markers(image, pose.image, dict, {});
-    const auto obs = markers.observations();
-    in.observations.insert(in.observations.end(), obs.begin(), obs.end());
-    in.features.push_back(detect::detect_sift(
-        image, pose.image, {}, detect::marker_mask(image.size(), markers.corners, dict.bits_per_side() + 2, 1)));
+};
+
+const FeatureScene& feature_scene() {
+  static const FeatureScene fs = [] {
+    FeatureScene f;
+    f.o = synth::test::small_options();
+    f.o.camera = synth::test::small_camera(1000, 750, 1200);
+    f.o.views.count = 7;
+    f.o.render.noise_sigma = 1;
+    f.o.speckle_mm = 1.6;
+    f.o.seed = 21;
+    f.scene = synth::make_part_scene(f.o);
+    const synth::PartRayScene rays(f.scene);
+    f.poses = synth::part_view_poses(f.o);
+    const auto dict = detect::MarkerDictionary::predefined(f.scene.dictionary);
+    f.in.camera = f.o.camera;
+    int view = 0;
+    for (const Pose& pose : f.poses) {
+      const cv::Mat image = cv::imdecode(
+          synth::encode_image(synth::render(rays, f.o.camera, pose, f.o.render, static_cast<std::uint64_t>(view++)), "jpg", 90),
+          cv::IMREAD_GRAYSCALE);
+      const auto markers = detect::detect_markers(image, pose.image, dict, {});
+      const auto obs = markers.observations();
+      f.in.observations.insert(f.in.observations.end(), obs.begin(), obs.end());
+      f.in.features.push_back(detect::detect_sift(
+          image, pose.image, {}, detect::marker_mask(image.size(), markers.corners, dict.bits_per_side() + 2, 1)));
+      cv::Mat grey;
+      image.convertTo(grey, CV_32F);
+      f.in.grey_images.push_back(grey);
+    }
+    return f;
+  }();
+  return fs;
+}
+
+struct FeatureMode {
+  const char* name;
+  bool poses;              // known poses: guided matching
+  bool refine;             // least-squares matching
+  double median_error_px;  // bound on the tracks' median error against the truth
+};
+
+class NaturalFeatures : public ::testing::TestWithParam<FeatureMode> {};
+
+// The bound: >= 2000 verified tracks of length >= 3 with <= 1 % off the true geometry
+// (by more than 2 px), in every mode; least-squares matching makes the tracks ~10x more precise.
+TEST_P(NaturalFeatures, TracksOnASynthScene) {
+  const FeatureMode& m = GetParam();
+  const FeatureScene& fs = feature_scene();
+  MatchInputs in = fs.in;
+  if (m.poses) in.poses = fs.poses;
+  MatchOptions opt;
+  if (m.refine) opt.refine = LsmOptions{};
+  const MatchResult r = match(in, opt);
+  const auto judged = truth::judge_tracks(r.tracks, fs.scene, fs.o.camera, fs.poses);
+  const auto features3 = truth::summarise(judged, 3, 2.0, opt.feature_track_offset);
+  std::vector<double> errors;
+  for (const auto& j : judged) {
+    if (j.track_id >= opt.feature_track_offset) errors.push_back(j.error_px);
   }
-  const MatchResult r = match(in, {});
-  const auto judged = truth::judge_tracks(r.tracks, scene, o.camera, poses);
-  const MatchOptions defaults;
-  const auto features3 = truth::summarise(judged, 3, 2.0, defaults.feature_track_offset);
-  const auto coded = truth::summarise(judged, 2, 1.0, 0);
-  std::cout << "[ match    ] synth, 6 views of 1000 x 750: " << r.feature_tracks << " feature tracks, " << features3.tracks
-            << " of length >= 3, " << features3.outliers << " of them off the true geometry by more than 2 px ("
-            << features3.outlier_percent() << " %); coded tracks " << r.coded_tracks << "\n";
+  ASSERT_FALSE(errors.empty());
+  std::nth_element(errors.begin(), errors.begin() + static_cast<std::ptrdiff_t>(errors.size() / 2), errors.end());
+  const double median = errors[errors.size() / 2];
+  std::cout << "[ match    ] synth, 7 views of 1000 x 750, " << m.name << ": " << r.feature_tracks << " feature tracks, "
+            << features3.tracks << " of length >= 3, " << features3.outliers
+            << " of them off the true geometry by more than 2 px (" << features3.outlier_percent()
+            << " %), median error " << median << " px; coded tracks " << r.coded_tracks << "\n";
   EXPECT_GE(features3.tracks, 2000u);
   EXPECT_LE(features3.outlier_percent(), 1.0);
+  EXPECT_LT(median, m.median_error_px);
+  if (m.refine) {
+    EXPECT_GT(r.refined_observations, 0u);
+    // Refined observations carry no size; unrefined ones carry their feature's.
+    for (const auto& t : r.tracks) {
+      if (t.track_id >= opt.feature_track_offset) {
+        EXPECT_FALSE(t.size_px.has_value());
+      }
+    }
+  } else {
+    for (const auto& t : r.tracks) {
+      if (t.track_id >= opt.feature_track_offset) {
+        EXPECT_TRUE(t.size_px.has_value());
+      }
+    }
+  }
   // Coded tracks (ids below the offset) are all right to 1 px.
   std::size_t coded_wrong = 0;
-  for (const auto& j : judged) coded_wrong += j.track_id < defaults.feature_track_offset && j.error_px > 1 ? 1 : 0;
+  for (const auto& j : judged) coded_wrong += j.track_id < opt.feature_track_offset && j.error_px > 1 ? 1 : 0;
   EXPECT_EQ(coded_wrong, 0u);
-  (void)coded;
 }
+
+INSTANTIATE_TEST_SUITE_P(Modes, NaturalFeatures,
+                         ::testing::Values(FeatureMode{"kdtree", false, false, 0.6},
+                                           FeatureMode{"kdtree_lsm", false, true, 0.1},
+                                           FeatureMode{"guided_lsm", true, true, 0.1}),
+                         [](const auto& info) { return std::string(info.param.name); });
 
 // ---------------------------------------------------------------------------------------------
 // Golden CLI cases.

@@ -1,6 +1,8 @@
 // match_track_check: tracks CSV against a synth folder's truth (benchmark support). Prints, for
 // natural-feature tracks (ids >= --min-id) of length >= 2 and >= 3, how many there are and how
 // many are outliers (see track_truth.hpp), and the same for coded tracks (ids below --min-id).
+#include <algorithm>
+#include <vector>
 #include <fstream>
 #include <iostream>
 
@@ -34,6 +36,16 @@ int main(int argc, char** argv) {
           const auto f = match::truth::summarise(judged, min_length, threshold_px, min_id);
           std::cout << "feature tracks of length >= " << min_length << ": " << f.tracks << ", outliers " << f.outliers
                     << " (" << f.outlier_percent() << " %, error > " << threshold_px << " px)\n";
+        }
+        // The error distribution of the natural-feature tracks (their consistency with the truth).
+        std::vector<double> errors;
+        for (const auto& j : judged) {
+          if (j.track_id >= min_id && j.length >= 2) errors.push_back(j.error_px);
+        }
+        std::sort(errors.begin(), errors.end());
+        if (!errors.empty()) {
+          auto at = [&](double q) { return errors[static_cast<std::size_t>(q * static_cast<double>(errors.size() - 1))]; };
+          std::cout << "feature track error px: median " << at(0.5) << ", p90 " << at(0.9) << ", p99 " << at(0.99) << "\n";
         }
         std::size_t coded = 0, coded_outliers = 0;
         for (const auto& j : judged) {

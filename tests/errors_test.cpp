@@ -425,6 +425,18 @@ void write_fixtures(const fs::path& dir) {
   f["poses.csv"] = poses;
   f["poses_other.csv"] = replace_all(poses, "part_", "other_");
 
+  // Feature files (match --refine lsm reads the photos they name): two keypoints each.
+  auto feat = [](const std::string& image, int w, int h) {
+    std::string t = "photomill-features v1\nimage " + image + "\nsize " + std::to_string(w) + " " + std::to_string(h) +
+                    "\ncount 2\ndim 4\n";
+    t += "20.5 20.25 4 10 0.1 1 2 3 4\n30 25 5 20 0.1 5 6 7 8\n";
+    return t;
+  };
+  f["a.feat"] = feat("a.png", 64, 48);
+  f["b_size.feat"] = feat("b.png", 64, 48);      // b.png is 80x60
+  f["notimage.feat"] = feat("notimage.png", 64, 48);
+  f["missing_image.feat"] = feat("missing.png", 64, 48);
+
   // Image lists on stdin (detect -).
   f["list_crlf.txt"] = crlf("a.png\nb.png\n");
   f["list_bom.txt"] = bom("a.png\nb.png\n");

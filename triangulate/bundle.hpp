@@ -52,9 +52,12 @@ struct ScaleConstraint {
 
 // The datum and weights of one adjustment.
 struct BundleSetup {
-  // Reprojection residuals are divided by the sigma of their observation's class (pixels).
+  // Reprojection residuals are divided by the sigma of their observation's class (pixels) times
+  // the observation's relative sigma (its feature size, see build_scene).
   std::array<double, kObservationClasses> observation_sigma_px{1, 1};
-  double sigma_of(const ObservationRef& ob) const { return observation_sigma_px[static_cast<std::size_t>(ob.cls)]; }
+  double sigma_of(const ObservationRef& ob) const {
+    return observation_sigma_px[static_cast<std::size_t>(ob.cls)] * ob.rel_sigma;
+  }
   std::vector<ScaleConstraint> scale_bars;   // used when both tracks are in the adjustment
   std::optional<std::size_t> fixed_image;    // gauge: this image's pose is held constant
   // Gauge: one coordinate (0..2) of this image's translation is held constant (fixes the scale

@@ -100,6 +100,10 @@ void add_options(CLI::App& app, Cli& c) {
                  "Track ids below this are coded targets (marker corners), the rest natural features; "
                  "each class gets its own sigma")
       ->check(CLI::NonNegativeNumber)->capture_default_str()->group(ba);
+  app.add_flag("!--ignore-feature-size", o.weight_by_feature_size,
+               "Weigh every observation of a class alike, even when the tracks give each feature's size_px "
+               "[default: sigma grows with the feature's size]")
+      ->group(ba);
   app.add_option("--outlier-sigmas", o.outliers.sigmas, "Remove observations beyond this many sigmas ...")
       ->check(CLI::PositiveNumber)->capture_default_str()->group(ba);
   app.add_option("--outlier-min-px", o.outliers.min_px, "... but never below this threshold ...")

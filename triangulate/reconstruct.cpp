@@ -527,13 +527,17 @@ std::vector<double> Pipeline::active_errors(std::vector<std::size_t>* which) con
 // per axis, |r| is Rayleigh distributed with median sigma sqrt(2 ln 2); corrected for the degrees
 // of freedom the adjustment absorbed:
 //   sigma_hat = median|r| / sqrt(2 ln 2) * sqrt(m / (m - n)),
-// m = 2 x observations, n = 6 x images + 3 x points (over all classes). A class without
-// observations keeps sigma 1.
+// m = 2 x observations, n = 6 x images + 3 x points (over all classes), with each |r| divided by
+// its observation's relative sigma first (feature size). A class without observations keeps
+// sigma 1.
 Pipeline::Sigmas Pipeline::robust_sigma_px() const {
   std::vector<std::size_t> which;
   const std::vector<double> e = active_errors(&which);
   std::array<std::vector<double>, kObservationClasses> by_class;
-  for (std::size_t k = 0; k < e.size(); ++k) by_class[static_cast<std::size_t>(scene_.observations[which[k]].cls)].push_back(e[k]);
+  for (std::size_t k = 0; k < e.size(); ++k) {
+    const ObservationRef& ob = scene_.observations[which[k]];
+    by_class[static_cast<std::size_t>(ob.cls)].push_back(e[k] / ob.rel_sigma);
+  }
   std::size_t points = 0;
   for (const SceneTrack& t : scene_.tracks) points += t.state == TrackState::Triangulated ? 1 : 0;
   const double m = 2.0 * static_cast<double>(e.size());
@@ -609,7 +613,7 @@ void Pipeline::final_adjustment() {
     std::size_t removed = 0;
     for (std::size_t k = 0; k < errors.size(); ++k) {
       ObservationRef& ob = scene_.observations[which[k]];
-      if (errors[k] <= threshold[static_cast<std::size_t>(ob.cls)]) continue;
+      if (errors[k] <= threshold[static_cast<std::size_t>(ob.cls)] * ob.rel_sigma) continue;
       ob.inlier = false;
       ob.removed_round = round;
       ob.removed_residual_px = errors[k];
@@ -742,7 +746,7 @@ Reconstruction Pipeline::run() {
     throw UsageError("no datum: give control points (--control-points), scale bars (--scale-bars) or the marker side "
                      "(--marker-side-mm), or accept an arbitrary scale with --arbitrary-scale");
   }
-  scene_ = build_scene(input_.tracks, camera, input_.control_points, o_.coded_id_limit);
+  scene_ = build_scene(input_.tracks, camera, input_.control_points, o_.coded_id_limit, o_.weight_by_feature_size);
   registered_by_.assign(scene_.images.size(), "");
   check_input();
 

@@ -72,6 +72,9 @@ struct ReconstructOptions {
   // Tracks with an id below this are coded targets (ArUco marker corners marker_id * 4 + corner
   // of the largest dictionary, board corners), the others natural features.
   TrackId coded_id_limit = 4096;
+  // Weight observations by their feature's size when the tracks give one (size_px): sigma of
+  // an observation = its class's sigma * size / the class's median size (scene.hpp, build_scene).
+  bool weight_by_feature_size = true;
   // PnP from control points needs this many of them visible in the image (not on a line).
   std::size_t control_min_points = 4;
   // PnP against triangulated points needs this many inliers.

@@ -3,12 +3,14 @@
 // the degenerate configurations that must end in an explanation.
 #include <cmath>
 #include <map>
+#include <random>
 #include <set>
 
 #include <gtest/gtest.h>
 
 #include "formats/error.hpp"
 #include "triangulate/reconstruct.hpp"
+#include "triangulate/scene.hpp"
 #include "triangulate/test_scene.hpp"
 
 namespace photomill::triangulate {
@@ -159,6 +161,48 @@ TEST(Reconstruct, RemovesOutliersAndKeepsAccuracy) {
   const test::Accuracy a = test::evaluate(r, truth, false);
   EXPECT_LE(a.part_rms_mm, 0.01);
   EXPECT_LE(a.centre_rms_mm, 0.02);
+}
+
+// Feature sizes (tracks' size_px) weight the observations: sigma = class sigma * size / median.
+TEST(Reconstruct, FeatureSizeSetsTheRelativeSigma) {
+  const CameraModel camera = to_camera_model(test::make_scene({}).camera, "test");
+  std::vector<TrackObservation> tracks{{5000, "a", 100, 100, 2.0}, {5000, "b", 110, 100, 4.0},
+                                       {5001, "a", 200, 100, 8.0}, {5001, "b", 210, 100},
+                                       {5002, "a", 300, 100, 0.5}, {7, "a", 50, 50, 100.0}};
+  const Scene s = build_scene(tracks, camera, {});
+  // Natural sizes 2, 4, 8, 0.5: median (upper) 4.
+  EXPECT_DOUBLE_EQ(s.observations[0].rel_sigma, 0.5);
+  EXPECT_DOUBLE_EQ(s.observations[1].rel_sigma, 1.0);
+  EXPECT_DOUBLE_EQ(s.observations[2].rel_sigma, 2.0);
+  EXPECT_DOUBLE_EQ(s.observations[3].rel_sigma, 1.0);                 // no size
+  EXPECT_DOUBLE_EQ(s.observations[4].rel_sigma, kMinRelativeSigma);  // 0.125 clamped
+  EXPECT_DOUBLE_EQ(s.observations[5].rel_sigma, 1.0);                 // the only coded one: its own median
+  const Scene plain = build_scene(tracks, camera, {}, 4096, false);
+  for (const auto& ob : plain.observations) EXPECT_EQ(ob.rel_sigma, 1.0);
+}
+
+// Observations of large features measured worse: weighting by size recovers most of the accuracy.
+TEST(Reconstruct, WeightingBySizeHelpsWhenNoiseGrowsWithSize) {
+  const SceneTruth truth = test::make_scene({});
+  ReconstructInput in = input_of(truth);
+  in.control_points = truth.plate_points;
+  std::mt19937 rng(5);
+  std::normal_distribution<double> n(0, 0.6);
+  std::size_t k = 0;
+  for (auto& t : in.tracks) {
+    const bool big = (k++ % 3) == 0;
+    t.size_px = big ? 12.0 : 1.0;
+    if (big) {
+      t.u_px += n(rng);
+      t.v_px += n(rng);
+    }
+  }
+  ReconstructOptions weighted, plain;
+  weighted.coded_id_limit = plain.coded_id_limit = 0;  // all one class: the size alone tells them apart
+  plain.weight_by_feature_size = false;
+  const test::Accuracy w = test::evaluate(reconstruct(in, weighted), truth, false);
+  const test::Accuracy p = test::evaluate(reconstruct(in, plain), truth, false);
+  EXPECT_LT(w.part_rms_mm, 0.6 * p.part_rms_mm) << w.part_rms_mm << " vs " << p.part_rms_mm;
 }
 
 TEST(Reconstruct, SelfCalibrationRecoversTheIntrinsics) {

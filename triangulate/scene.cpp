@@ -1,6 +1,8 @@
 // The reconstruction state (see scene.hpp).
 #include "triangulate/scene.hpp"
 
+#include <algorithm>
+#include <array>
 #include <unordered_map>
 
 #include <ceres/rotation.h>
@@ -45,7 +47,8 @@ std::size_t Scene::registered_count() const {
 const char* to_string(ObservationClass c) { return c == ObservationClass::Coded ? "coded" : "natural"; }
 
 Scene build_scene(const std::vector<TrackObservation>& tracks, const CameraModel& camera,
-                  const std::vector<ControlPoint>& control_points, TrackId coded_id_limit) {
+                  const std::vector<ControlPoint>& control_points, TrackId coded_id_limit,
+                  bool weight_by_size) {
   Scene s;
   s.camera = camera;
   std::unordered_map<std::string, std::size_t> image_index;
@@ -81,6 +84,24 @@ Scene build_scene(const std::vector<TrackObservation>& tracks, const CameraModel
   for (ObservationRef& ob : s.observations) {
     const SceneTrack& t = s.tracks[ob.track];
     ob.cls = t.id < coded_id_limit || t.control_mm ? ObservationClass::Coded : ObservationClass::Natural;
+  }
+  if (weight_by_size) {
+    std::array<std::vector<double>, kObservationClasses> sizes;
+    for (std::size_t k = 0; k < tracks.size(); ++k) {
+      if (tracks[k].size_px) sizes[static_cast<std::size_t>(s.observations[k].cls)].push_back(*tracks[k].size_px);
+    }
+    std::array<double, kObservationClasses> median{};
+    for (std::size_t c = 0; c < kObservationClasses; ++c) {
+      auto& v = sizes[c];
+      if (v.empty()) continue;
+      std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+      median[c] = v[v.size() / 2];
+    }
+    for (std::size_t k = 0; k < tracks.size(); ++k) {
+      if (!tracks[k].size_px) continue;
+      ObservationRef& ob = s.observations[k];
+      ob.rel_sigma = std::max(*tracks[k].size_px / median[static_cast<std::size_t>(ob.cls)], kMinRelativeSigma);
+    }
   }
   return s;
 }

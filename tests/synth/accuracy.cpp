@@ -173,6 +173,7 @@ void surface_figures(Report& r, const synth::HeightField& h, const BSplineSurfac
   const double u0 = s.knots_u[s.degree_u], u1 = s.knots_u[s.num_poles_u];
   const double v0 = s.knots_v[s.degree_v], v1 = s.knots_v[s.num_poles_v];
   double sum = 0, max = 0;
+  Eigen::Vector3d at_max = Eigen::Vector3d::Zero();
   std::size_t n = 0;
   for (int i = 0; i <= 100; ++i) {
     for (int j = 0; j <= 100; ++j) {
@@ -183,10 +184,14 @@ void surface_figures(Report& r, const synth::HeightField& h, const BSplineSurfac
       }
       const double e = std::abs(p.z() - h.height_mm(p.x(), p.y()));
       sum += e * e;
-      max = std::max(max, e);
+      if (e > max) {
+        max = e;
+        at_max = p;
+      }
       ++n;
     }
   }
+  if (n) log::debug("surface deviation max at (" + format_double(at_max.x()) + ", " + format_double(at_max.y()) + ")");
   r.line("surface deviation RMS", n ? std::sqrt(sum / n) : NAN, "mm", b.surface_rms_mm);
   r.line("surface deviation max", n ? max : NAN, "mm", b.surface_max_mm);
 }
@@ -214,6 +219,7 @@ void toolpath_figures(Report& r, const synth::PartScene& scene, const ClData& cl
   const synth::HeightField& h = scene.surface;
   const double R = cl.tool_diameter_mm / 2;
   double gouge = 0, excess = 0;
+  Eigen::Vector3d at_gouge = Eigen::Vector3d::Zero();
   for (const ClMove& m : cl.moves) {
     if (m.kind != ClMove::Kind::Feed || !(R > 0)) continue;
     const Eigen::Vector3d c = m.tip_mm + R * m.axis.value_or(Eigen::Vector3d::UnitZ());
@@ -222,8 +228,15 @@ void toolpath_figures(Report& r, const synth::PartScene& scene, const ClData& cl
       continue;
     }
     const double d = distance_to_truth(h, c, R + 1);
-    gouge = std::max(gouge, R - d);
+    if (R - d > gouge) {
+      gouge = R - d;
+      at_gouge = m.tip_mm;
+    }
     excess = std::max(excess, d - R);
+  }
+  if (gouge > 0) {
+    log::debug("tool path gouge max at tip (" + format_double(at_gouge.x()) + ", " + format_double(at_gouge.y()) + ", " +
+               format_double(at_gouge.z()) + ")");
   }
   r.line("tool path gouge max", gouge, "mm", b.gouge_mm);
   r.line("tool path excess material max", excess, "mm", b.excess_mm);

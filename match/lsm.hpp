@@ -1,0 +1,63 @@
+// Least-squares matching (LSM): refines the position of a feature in one image so that its
+// neighbourhood matches a reference image's neighbourhood of the same point to a few hundredths of
+// a pixel. SIFT places a keypoint at a scale-space extremum, which lies on the same surface point
+// in two photos only to a fraction of the feature's size (and less so on a surface seen at
+// different angles); LSM aligns the grey values themselves.
+//
+// Model (Gruen 1985, "Adaptive least squares correlation", with an affine geometric and a linear
+// radiometric transformation): for window offsets d around the reference point p_ref,
+//   f(p_ref + d) = r0 + r1 * g(A d + t) + e,
+// f the reference image, g the search image, A (2x2) and t (the search point) the affine
+// geometric transformation, r0 and r1 brightness and contrast; the 8 parameters are found by
+// Gauss-Newton on sum e^2, with the gradients of g by central differences of bilinear samples.
+#pragma once
+
+#include <optional>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+namespace photomill::match {
+
+struct LsmOptions {
+  // Window half-width: this many times the reference feature's size, clamped to the range below.
+  double window_per_size = 1.0;
+  int min_half_window_px = 5;
+  int max_half_window_px = 15;
+  int max_iterations = 30;
+  // Converged when the point moves by less than this in an iteration (and the window's corners too).
+  double converged_px = 0.01;
+  // Refused if the point moved farther than this from where it started (a different texture
+  // was found), if the window's zoom sqrt|det A| left [1/max_zoom, max_zoom] relative to the
+  // start, or if the aligned windows correlate below min_correlation.
+  double max_shift_px = 3;
+  double max_zoom = 2;
+  double min_correlation = 0.9;
+};
+
+struct LsmResult {
+  Eigen::Vector2d point_px;   // refined search point (OpenCV pixel convention)
+  Eigen::Matrix2d affine;     // A: window offsets in the reference -> in the search image
+  double correlation = 0;     // normalised cross-correlation of the aligned windows
+  int iterations = 0;
+};
+
+// Why an alignment was refused (for the summary).
+enum class LsmFailure { None, Border, Singular, NotConverged, Shift, Zoom, Correlation };
+const char* to_string(LsmFailure f);
+
+// Aligns the search image `g` to the reference image `f` around `ref_px`, starting from the
+// affine map A0 and search point t0. Both images single-channel CV_32F. Returns nullopt (and
+// sets *why) when refused. `half_window_px` as chosen by half_window_for().
+std::optional<LsmResult> lsm_align(const cv::Mat& f, const Eigen::Vector2d& ref_px, int half_window_px,
+                                   const cv::Mat& g, const Eigen::Matrix2d& A0, const Eigen::Vector2d& t0,
+                                   const LsmOptions& o, LsmFailure* why = nullptr);
+
+int half_window_for(double ref_size_px, const LsmOptions& o);
+
+// Normalised cross-correlation of the reference window and the search window mapped by (A, t);
+// nullopt where a sample falls outside an image. Used to pick the start among candidates.
+std::optional<double> window_correlation(const cv::Mat& f, const Eigen::Vector2d& ref_px, int half_window_px,
+                                         const cv::Mat& g, const Eigen::Matrix2d& A, const Eigen::Vector2d& t);
+
+}  // namespace photomill::match
