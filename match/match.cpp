@@ -30,23 +30,19 @@ struct FeatureGrid {
   double x0 = 0, y0 = 0, cell = 8;
   int nx = 0, ny = 0;
   std::vector<std::vector<int>> cells;
-  void build(const std::vector<Eigen::Vector2d>& pts, double cell_px) {
+  // Over the undistorted image area grown by half the image on every side; points beyond it
+  // (only a wild distortion model puts them there) are left out, so the grid stays small.
+  void build(const std::vector<Eigen::Vector2d>& pts, int width_px, int height_px, double cell_px) {
     cell = cell_px;
-    if (pts.empty()) return;
-    double x1 = pts[0].x(), y1 = pts[0].y();
-    x0 = x1;
-    y0 = y1;
-    for (const auto& p : pts) {
-      x0 = std::min(x0, p.x());
-      y0 = std::min(y0, p.y());
-      x1 = std::max(x1, p.x());
-      y1 = std::max(y1, p.y());
-    }
-    nx = static_cast<int>((x1 - x0) / cell) + 1;
-    ny = static_cast<int>((y1 - y0) / cell) + 1;
+    x0 = -0.5 * width_px;
+    y0 = -0.5 * height_px;
+    nx = static_cast<int>(2.0 * width_px / cell) + 1;
+    ny = static_cast<int>(2.0 * height_px / cell) + 1;
     cells.assign(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny), {});
     for (std::size_t k = 0; k < pts.size(); ++k) {
-      const int cx = static_cast<int>((pts[k].x() - x0) / cell), cy = static_cast<int>((pts[k].y() - y0) / cell);
+      const double fx = (pts[k].x() - x0) / cell, fy = (pts[k].y() - y0) / cell;
+      if (!(fx >= 0 && fy >= 0 && fx < nx && fy < ny)) continue;
+      const int cx = static_cast<int>(fx), cy = static_cast<int>(fy);
       cells[static_cast<std::size_t>(cy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(cx)].push_back(static_cast<int>(k));
     }
   }
@@ -65,9 +61,11 @@ struct FeatureGrid {
       const double wa = w0 + i * cell, wb = wa + cell;
       double c1 = -(lw * wa + l.z()) / la, c2 = -(lw * wb + l.z()) / la;
       if (c1 > c2) std::swap(c1, c2);
-      const int j0 = std::max(0, static_cast<int>(std::floor((c1 - reach - a0) / cell)));
-      const int j1 = std::min(n_across - 1, static_cast<int>(std::floor((c2 + reach - a0) / cell)));
-      for (int j = j0; j <= j1; ++j) {
+      // Clamped in double first: a line far from the image gives cell numbers beyond int.
+      const double j0d = std::max(0.0, std::floor((c1 - reach - a0) / cell));
+      const double j1d = std::min(static_cast<double>(n_across - 1), std::floor((c2 + reach - a0) / cell));
+      if (!(j0d <= j1d)) continue;
+      for (int j = static_cast<int>(j0d); j <= static_cast<int>(j1d); ++j) {
         const int cx = steep ? j : i, cy = steep ? i : j;
         for (int k : cells[static_cast<std::size_t>(cy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(cx)]) visit(k);
       }
@@ -180,6 +178,16 @@ std::vector<FeatureMatch> match_guided(const ImageData& a, const ImageData& b, c
   std::vector<float> b1(static_cast<std::size_t>(nb), kInf), b2(static_cast<std::size_t>(nb), kInf);
   std::vector<int> abest(static_cast<std::size_t>(na), -1), bbest(static_cast<std::size_t>(nb), -1);
   const double thr = o.fit.threshold_px;
+  // Keeps the best and second-best distance (and who had the best).
+  auto keep_two = [](float& best, float& second, int& who, float d, int other) {
+    if (d < best) {
+      second = best;
+      best = d;
+      who = other;
+    } else if (d < second) {
+      second = d;
+    }
+  };
   for (int i = 0; i < na; ++i) {
     const Eigen::Vector2d& xa = a.feature_ideal[static_cast<std::size_t>(i)];
     Eigen::Vector3d l = F * xa.homogeneous();
@@ -198,21 +206,8 @@ std::vector<FeatureMatch> match_guided(const ImageData& a, const ImageData& b, c
         const float e = da[k] - db[k];
         d += e * e;
       }
-      const auto iu = static_cast<std::size_t>(i), ju = static_cast<std::size_t>(j);
-      if (d < a1[iu]) {
-        a2[iu] = a1[iu];
-        a1[iu] = d;
-        abest[iu] = j;
-      } else if (d < a2[iu]) {
-        a2[iu] = d;
-      }
-      if (d < b1[ju]) {
-        b2[ju] = b1[ju];
-        b1[ju] = d;
-        bbest[ju] = i;
-      } else if (d < b2[ju]) {
-        b2[ju] = d;
-      }
+      keep_two(a1[static_cast<std::size_t>(i)], a2[static_cast<std::size_t>(i)], abest[static_cast<std::size_t>(i)], d, j);
+      keep_two(b1[static_cast<std::size_t>(j)], b2[static_cast<std::size_t>(j)], bbest[static_cast<std::size_t>(j)], d, i);
     });
   }
   auto ratio = [](float d1, float d2) { return d2 > 0 && d2 < kInf ? std::sqrt(d1 / d2) : 1.0f; };
@@ -363,7 +358,7 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
     cv::Mat(rows, d.features->descriptor_dim, CV_8U, const_cast<std::uint8_t*>(d.features->descriptors.data()))
         .convertTo(d.descriptors, CV_32F);
     if (guided) {
-      d.grid.build(d.feature_ideal, kGuidedCellPx);
+      d.grid.build(d.feature_ideal, d.features->image_width_px, d.features->image_height_px, kGuidedCellPx);
     } else if (rows >= 2) {
       // FLANN draws its random trees from OpenCV's thread-local RNG: seed it per image so the
       // trees, hence the matches, do not depend on which thread indexed which image before.
