@@ -111,14 +111,14 @@ int half_window_for(double ref_size_px, const LsmOptions& o) {
 }
 
 std::optional<double> window_correlation(const cv::Mat& f, const Eigen::Vector2d& ref_px, int h, const cv::Mat& g,
-                                         const Eigen::Matrix2d& A, const Eigen::Vector2d& t) {
+                                         const Eigen::Matrix2d& A, const Eigen::Vector2d& t, int stride) {
   std::vector<double> a, b;
-  if (!window_samples(f, ref_px, h, a)) return std::nullopt;
-  for (int dy = -h; dy <= h; ++dy) {
-    for (int dx = -h; dx <= h; ++dx) {
+  for (int dy = -h; dy <= h; dy += stride) {
+    for (int dx = -h; dx <= h; dx += stride) {
       const Eigen::Vector2d x = A * Eigen::Vector2d(dx, dy) + t;
-      double v;
-      if (!sample(g, x.x(), x.y(), v)) return std::nullopt;
+      double u, v;
+      if (!sample(f, ref_px.x() + dx, ref_px.y() + dy, u) || !sample(g, x.x(), x.y(), v)) return std::nullopt;
+      a.push_back(u);
       b.push_back(v);
     }
   }

@@ -29,7 +29,8 @@ namespace {
 struct FeatureGrid {
   double x0 = 0, y0 = 0, cell = 8;
   int nx = 0, ny = 0;
-  std::vector<std::vector<int>> cells;
+  // Compressed rows: the features of cell c are items[start[c] .. start[c + 1]).
+  std::vector<int> start, items;
   // Over the undistorted image area grown by half the image on every side; points beyond it
   // (only a wild distortion model puts them there) are left out, so the grid stays small.
   void build(const std::vector<Eigen::Vector2d>& pts, int width_px, int height_px, double cell_px) {
@@ -38,19 +39,27 @@ struct FeatureGrid {
     y0 = -0.5 * height_px;
     nx = static_cast<int>(2.0 * width_px / cell) + 1;
     ny = static_cast<int>(2.0 * height_px / cell) + 1;
-    cells.assign(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny), {});
+    const std::size_t ncells = static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny);
+    std::vector<std::size_t> cell_of(pts.size(), ncells);
+    start.assign(ncells + 1, 0);
     for (std::size_t k = 0; k < pts.size(); ++k) {
       const double fx = (pts[k].x() - x0) / cell, fy = (pts[k].y() - y0) / cell;
       if (!(fx >= 0 && fy >= 0 && fx < nx && fy < ny)) continue;
-      const int cx = static_cast<int>(fx), cy = static_cast<int>(fy);
-      cells[static_cast<std::size_t>(cy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(cx)].push_back(static_cast<int>(k));
+      cell_of[k] = static_cast<std::size_t>(fy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(fx);
+      ++start[cell_of[k] + 1];
+    }
+    for (std::size_t c = 0; c < ncells; ++c) start[c + 1] += start[c];
+    items.assign(static_cast<std::size_t>(start[ncells]), 0);
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (std::size_t k = 0; k < pts.size(); ++k) {
+      if (cell_of[k] < ncells) items[static_cast<std::size_t>(fill[cell_of[k]]++)] = static_cast<int>(k);
     }
   }
   // Calls visit(k) for every feature in the cells that a band of half-width `band` around the
   // line l (l0 x + l1 y + l2 = 0, (l0, l1) a unit normal) touches (and a few more).
   template <class Visit>
   void along_line(const Eigen::Vector3d& l, double band, Visit&& visit) const {
-    if (cells.empty()) return;
+    if (items.empty()) return;
     const bool steep = std::abs(l.x()) > std::abs(l.y());  // walk along y when the line is steep
     const int n_walk = steep ? ny : nx, n_across = steep ? nx : ny;
     const double w0 = steep ? y0 : x0, a0 = steep ? x0 : y0;
@@ -67,7 +76,8 @@ struct FeatureGrid {
       if (!(j0d <= j1d)) continue;
       for (int j = static_cast<int>(j0d); j <= static_cast<int>(j1d); ++j) {
         const int cx = steep ? j : i, cy = steep ? i : j;
-        for (int k : cells[static_cast<std::size_t>(cy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(cx)]) visit(k);
+        const std::size_t c = static_cast<std::size_t>(cy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(cx);
+        for (int k = start[c]; k < start[c + 1]; ++k) visit(items[static_cast<std::size_t>(k)]);
       }
     }
   }
@@ -188,18 +198,27 @@ std::vector<FeatureMatch> match_guided(const ImageData& a, const ImageData& b, c
       second = d;
     }
   };
+  // Sampson distance (H&Z eq. 11.9) from F x_a, computed once per feature of a, and the first two
+  // components of F^T x_b, once per feature of b:
+  //   d^2 = (x_b . F x_a)^2 / ((F x_a)_1^2 + (F x_a)_2^2 + (F^T x_b)_1^2 + (F^T x_b)_2^2).
+  std::vector<double> ftb2(static_cast<std::size_t>(nb));
+  for (int j = 0; j < nb; ++j) {
+    ftb2[static_cast<std::size_t>(j)] = (F.transpose() * b.feature_ideal[static_cast<std::size_t>(j)].homogeneous()).head<2>().squaredNorm();
+  }
+  const double thr2 = thr * thr;
   for (int i = 0; i < na; ++i) {
     const Eigen::Vector2d& xa = a.feature_ideal[static_cast<std::size_t>(i)];
-    Eigen::Vector3d l = F * xa.homogeneous();
-    const double norm = l.head<2>().norm();
-    if (!(norm > 0)) continue;
-    l /= norm;
+    const Eigen::Vector3d fa = F * xa.homogeneous();
+    const double fa2 = fa.head<2>().squaredNorm();
+    if (!(fa2 > 0)) continue;
+    const Eigen::Vector3d l = fa / std::sqrt(fa2);
     const float* da = a.descriptors.ptr<float>(i);
     // Sampson distance <= thr implies a distance to the line of at most thr * sqrt(2) when the
     // two epipolar gradients are alike; 2 thr leaves room, the exact test follows.
     b.grid.along_line(l, 2 * thr, [&](int j) {
       const Eigen::Vector2d& xb = b.feature_ideal[static_cast<std::size_t>(j)];
-      if (sampson_distance_px(F, xa, xb) > thr) return;
+      const double e = xb.x() * fa.x() + xb.y() * fa.y() + fa.z();
+      if (e * e > thr2 * (fa2 + ftb2[static_cast<std::size_t>(j)])) return;
       const float* db = b.descriptors.ptr<float>(j);
       float d = 0;
       for (int k = 0; k < dim; ++k) {
@@ -574,7 +593,7 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
         double best = -2;
         for (double turn : turns) {
           const Eigen::Matrix2d A = zoom * Eigen::Rotation2Dd(turn).toRotationMatrix();
-          const auto c = window_correlation(*dr.grey, ref, h, *dj.grey, A, start);
+          const auto c = window_correlation(*dr.grey, ref, h, *dj.grey, A, start, 2);
           if (c && *c > best) {
             best = *c;
             best_A = A;
