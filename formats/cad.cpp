@@ -664,13 +664,19 @@ void write_iges(const BSplineSurface& surface, const std::string& path) {
   });
 }
 
-std::vector<BSplineSurface> read_step(const std::string& path) {
-  check_kind(path, CadKind::Step);
-  return read_isolated(path, "STEP", [&] {
-    return guarded(path, "read STEP", [&] {
-      STEPControl_Reader reader;
+namespace {
+
+// Reads a STEP or IGES file with a Reader (STEPControl_Reader or IGESControl_Reader, both
+// XSControl_Readers), made in the child process that reads the file.
+template <class Reader>
+std::vector<BSplineSurface> read_with(const std::string& path, CadKind kind, const char* name) {
+  check_kind(path, kind);
+  const std::string action = std::string("read ") + name;
+  return read_isolated(path, name, [&] {
+    return guarded(path, action.c_str(), [&] {
+      Reader reader;
       const IFSelect_ReturnStatus status = reader.ReadFile(path.c_str());
-      if (status != IFSelect_RetDone) throw InputError(path, 0, "not a readable STEP file" + why(status));
+      if (status != IFSelect_RetDone) throw InputError(path, 0, std::string("not a readable ") + name + " file" + why(status));
       refuse_unreadable_entities(reader, path);
       reader.TransferRoots();
       return faces_of(reader.OneShape(), path);
@@ -678,18 +684,14 @@ std::vector<BSplineSurface> read_step(const std::string& path) {
   });
 }
 
+}  // namespace
+
+std::vector<BSplineSurface> read_step(const std::string& path) {
+  return read_with<STEPControl_Reader>(path, CadKind::Step, "STEP");
+}
+
 std::vector<BSplineSurface> read_iges(const std::string& path) {
-  check_kind(path, CadKind::Iges);
-  return read_isolated(path, "IGES", [&] {
-    return guarded(path, "read IGES", [&] {
-      IGESControl_Reader reader;
-      const IFSelect_ReturnStatus status = reader.ReadFile(path.c_str());
-      if (status != IFSelect_RetDone) throw InputError(path, 0, "not a readable IGES file" + why(status));
-      refuse_unreadable_entities(reader, path);
-      reader.TransferRoots();
-      return faces_of(reader.OneShape(), path);
-    });
-  });
+  return read_with<IGESControl_Reader>(path, CadKind::Iges, "IGES");
 }
 
 std::vector<BSplineSurface> read_cad(const std::string& path) {
