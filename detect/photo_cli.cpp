@@ -69,6 +69,10 @@ void add_photo_options(CLI::App& app, PhotoCli& c) {
       ->group(features);
   app.add_option("--max-features", c.sift.max_features, "Strongest SIFT features kept per image (0: all)")
       ->group(features)->capture_default_str()->check(CLI::Range(0, 10'000'000));
+  app.add_option("--cap-cell-px", c.sift.cap_cell_px,
+                 "Spread the --max-features cap over square cells of this side: each cell's strongest first, so "
+                 "shadowed parts keep features (0: the image's strongest)")
+      ->group(features)->capture_default_str()->check(CLI::Range(0, 100'000));
   app.add_option("--sift-contrast-threshold", c.sift.contrast_threshold,
                  "SIFT contrast threshold (OpenCV's; divided by the octave layers)")
       ->group(features)->capture_default_str()->check(CLI::Range(0.0, 1.0));

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <utility>
 
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -14,6 +15,7 @@ namespace photomill::detect {
 
 void validate(const SiftOptions& o) {
   if (o.max_features < 0) throw UsageError("--max-features must be 0 (no cap) or positive");
+  if (o.cap_cell_px < 0) throw UsageError("--cap-cell-px must be 0 (strongest in the image) or positive");
   if (o.octave_layers < 1 || o.octave_layers > 10) throw UsageError("--sift-octave-layers must be in 1..10");
   if (!(o.contrast_threshold >= 0) || !std::isfinite(o.contrast_threshold)) {
     throw UsageError("--sift-contrast-threshold must be a non-negative number");
@@ -26,12 +28,24 @@ void validate(const SiftOptions& o) {
 FeatureSet detect_sift(const cv::Mat& grey, const std::string& image_name, const SiftOptions& o, const cv::Mat& mask) {
   CV_Assert(grey.type() == CV_8UC1);
   CV_Assert(mask.empty() || (mask.type() == CV_8UC1 && mask.size() == grey.size()));
-  // OpenCV keeps the `max_features` best by response itself (KeyPointsFilter::retainBest).
-  const auto sift = cv::SIFT::create(o.max_features, o.octave_layers, o.contrast_threshold, o.edge_threshold, o.sigma,
-                                     CV_8U);
   std::vector<cv::KeyPoint> keypoints;
   cv::Mat descriptors;
-  sift->detectAndCompute(grey, mask, keypoints, descriptors);
+  if (o.cap_cell_px == 0 || o.max_features == 0) {
+    // OpenCV keeps the `max_features` best by response itself (KeyPointsFilter::retainBest).
+    const auto sift = cv::SIFT::create(o.max_features, o.octave_layers, o.contrast_threshold, o.edge_threshold,
+                                       o.sigma, CV_8U);
+    sift->detectAndCompute(grey, mask, keypoints, descriptors);
+  } else {
+    // All keypoints, the cap spread over cells, then descriptors for the kept ones only.
+    const auto sift = cv::SIFT::create(0, o.octave_layers, o.contrast_threshold, o.edge_threshold, o.sigma, CV_8U);
+    std::vector<cv::KeyPoint> all;
+    sift->detect(grey, all, mask);
+    const std::vector<std::size_t> order = spread_order(all, o.cap_cell_px);
+    const std::size_t kept = std::min(order.size(), static_cast<std::size_t>(o.max_features));
+    keypoints.reserve(kept);
+    for (std::size_t k = 0; k < kept; ++k) keypoints.push_back(all[order[k]]);
+    sift->compute(grey, keypoints, descriptors);
+  }
   FeatureSet fs;
   fs.image = image_name;
   fs.image_width_px = grey.cols;
@@ -51,6 +65,32 @@ FeatureSet detect_sift(const cv::Mat& grey, const std::string& image_name, const
     fs.descriptors.insert(fs.descriptors.end(), row, row + fs.descriptor_dim);
   }
   return fs;
+}
+
+std::vector<std::size_t> spread_order(const std::vector<cv::KeyPoint>& keypoints, int cell_px) {
+  const auto cell_of = [&](const cv::KeyPoint& k) {
+    return std::pair<long, long>(static_cast<long>(std::floor(k.pt.x / cell_px)),
+                                 static_cast<long>(std::floor(k.pt.y / cell_px)));
+  };
+  std::vector<std::size_t> by_cell(keypoints.size());
+  std::iota(by_cell.begin(), by_cell.end(), std::size_t{0});
+  std::stable_sort(by_cell.begin(), by_cell.end(), [&](std::size_t a, std::size_t b) {
+    const auto ca = cell_of(keypoints[a]), cb = cell_of(keypoints[b]);
+    if (ca != cb) return ca < cb;
+    return keypoints[a].response > keypoints[b].response;
+  });
+  std::vector<std::size_t> rank(keypoints.size());
+  for (std::size_t k = 0; k < by_cell.size(); ++k) {
+    const bool same_cell = k > 0 && cell_of(keypoints[by_cell[k]]) == cell_of(keypoints[by_cell[k - 1]]);
+    rank[by_cell[k]] = same_cell ? rank[by_cell[k - 1]] + 1 : 0;
+  }
+  std::vector<std::size_t> order(keypoints.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    if (rank[a] != rank[b]) return rank[a] < rank[b];
+    return keypoints[a].response > keypoints[b].response;
+  });
+  return order;
 }
 
 cv::Mat marker_mask(cv::Size size, const std::vector<std::array<Eigen::Vector2d, 4>>& markers, int cells,

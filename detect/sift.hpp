@@ -16,6 +16,10 @@ namespace photomill::detect {
 
 struct SiftOptions {
   int max_features = 8000;          // strongest keypoints kept per image (by response); 0: all
+  // 0: the cap keeps the image's strongest keypoints. > 0: the cap is spread over square cells
+  // of this side (px): every cell's strongest first, then every cell's second, ... (see
+  // spread_order), so dim or shadowed parts of a photo keep features beside bright ones.
+  int cap_cell_px = 0;
   int octave_layers = 3;            // Lowe's s: scales sampled per octave
   double contrast_threshold = 0.04; // OpenCV's default; OpenCV divides it by s (Lowe's 0.03 is 0.09)
   double edge_threshold = 10;       // Lowe's r: principal-curvature ratio limit
@@ -30,6 +34,14 @@ struct SiftOptions {
 
 // Validates the options; throws UsageError.
 void validate(const SiftOptions& options);
+
+// The order in which the cap keeps keypoints when it is spread over cells of `cell_px`: sorted by
+// (rank within the keypoint's cell by decreasing response, then decreasing response). The first
+// N of this order are, for any N, as even a cover of the image as the cells allow: no cell gets
+// its (k+1)-th keypoint before every cell that has k has given its k-th. (The idea of selecting
+// features over a grid rather than by global strength: ORB-SLAM's per-cell FAST thresholds,
+// Mur-Artal et al. 2015; Brown et al. 2005's adaptive non-maximal suppression.)
+std::vector<std::size_t> spread_order(const std::vector<cv::KeyPoint>& keypoints, int cell_px);
 
 // SIFT on one grey image (CV_8UC1). `mask` (CV_8UC1, same size, or empty): keypoints only where
 // it is non-zero. Keypoints sorted by decreasing response; descriptors as OpenCV's CV_8U SIFT.

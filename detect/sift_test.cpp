@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
 #include <random>
 #include <sstream>
 
@@ -155,6 +156,54 @@ TEST(Sift, OptionsAreChecked) {
   o = {};
   o.edge_threshold = 0;
   EXPECT_THROW(validate(o), UsageError);
+  o = {};
+  o.cap_cell_px = -1;
+  EXPECT_THROW(validate(o), UsageError);
+}
+
+// Three cells of 100 px: the first with four strong keypoints, the others with weaker ones.
+TEST(Sift, SpreadOrderTakesEachCellsStrongestFirst) {
+  const auto kp = [](float x, float y, float response) { return cv::KeyPoint(x, y, 3.f, -1.f, response); };
+  const std::vector<cv::KeyPoint> k{kp(10, 10, 0.9f),  kp(20, 10, 0.8f),  kp(30, 10, 0.7f), kp(40, 10, 0.6f),
+                                    kp(150, 10, 0.2f), kp(160, 10, 0.3f), kp(10, 150, 0.1f)};
+  EXPECT_EQ(spread_order(k, 100), (std::vector<std::size_t>{0, 5, 6, 1, 4, 2, 3}));
+  // One cell over everything: plain decreasing response.
+  EXPECT_EQ(spread_order(k, 1000), (std::vector<std::size_t>{0, 1, 2, 3, 5, 4, 6}));
+}
+
+// The left half at full contrast, the right half at a fifth (a shadowed flank): the cap kept by
+// strength alone leaves the dim half almost bare, spread over cells it keeps about half there.
+TEST(Sift, SpreadCapKeepsFeaturesInTheShadow) {
+  cv::Mat img = texture(11);
+  cv::Mat right = img(cv::Rect(img.cols / 2, 0, img.cols / 2, img.rows));
+  right.convertTo(right, -1, 0.2, 100);
+  SiftOptions o;
+  o.contrast_threshold = 0.01;
+  o.max_features = 300;
+  const auto share_right = [&](const FeatureSet& fs) {
+    std::size_t n = 0;
+    for (const auto& k : fs.keypoints) n += k.x_px >= img.cols / 2 + 8 ? 1 : 0;
+    return static_cast<double>(n) / static_cast<double>(fs.keypoints.size());
+  };
+  const FeatureSet strongest = detect_sift(img, "t", o);
+  o.cap_cell_px = 64;
+  const FeatureSet spread = detect_sift(img, "t", o);
+  ASSERT_EQ(strongest.keypoints.size(), 300u);
+  ASSERT_EQ(spread.keypoints.size(), 300u);
+  EXPECT_EQ(spread.descriptors.size(), 300u * 128);
+  std::cout << "[ sift     ] share of features in the dim half: strongest " << share_right(strongest) << ", spread "
+            << share_right(spread) << "\n";
+  EXPECT_LT(share_right(strongest), 0.1);
+  EXPECT_GT(share_right(spread), 0.35);
+  // Kept in spread order: responses decrease within every cell.
+  std::map<std::pair<int, int>, float> last;
+  for (const auto& k : spread.keypoints) {
+    const std::pair<int, int> cell(static_cast<int>((k.x_px + 0.25) / 64), static_cast<int>((k.y_px + 0.25) / 64));
+    if (last.count(cell)) {
+      EXPECT_LE(k.response, last[cell]);
+    }
+    last[cell] = k.response;
+  }
 }
 
 }  // namespace
