@@ -11,7 +11,9 @@
 #include <iostream>
 #include <map>
 #include <optional>
+#include <set>
 #include <sstream>
+#include <string>
 #include <vector>
 
 #include "formats/bspline.hpp"
@@ -56,7 +58,8 @@ const std::map<std::string, Stage>& stages() {
       {"detect",
        {"detect",
         {"{set}/part_*.jpg", "--aruco", "DICT_4X4_100", "--features", "{work}/features", "--mask-markers",
-         "--sift-contrast-threshold", "0.02", "--max-features", "20000", "-o", "{work}/observations.csv"},
+         "--sift-contrast-threshold", "0.01", "--max-features", "20000", "--cap-cell-px", "64", "-o",
+         "{work}/observations.csv"},
         {}}},
       {"match-markers",
        {"match", {"{work}/observations.csv", "--camera", "{work}/camera.yaml", "-o", "{work}/marker_tracks.csv"},
@@ -69,17 +72,18 @@ const std::map<std::string, Stage>& stages() {
       {"match",
        {"match",
         {"{work}/observations.csv", "--features", "{work}/features", "--camera", "{work}/camera.yaml", "--poses",
-         "{work}/marker_poses.csv", "--min-track-length", "3", "--flann-checks", "16", "-o", "{work}/tracks.csv"},
+         "{work}/marker_poses.csv", "--min-track-length", "2", "--flann-checks", "16", "--lsm-max-half-window-px", "5", "-o",
+         "{work}/tracks.csv"},
         {"triangulate-markers"}}},
       {"triangulate",
        {"triangulate",
         {"{work}/tracks.csv", "--camera", "{work}/camera.yaml", "--control-points", "{set}/control_points.csv",
-         "--refine-intrinsics", "all", "--outlier-rounds", "2", "--poses", "{work}/poses.csv", "-o",
+         "--refine-intrinsics", "all", "--outlier-rounds", "2", "--function-tolerance", "1e-6", "--poses", "{work}/poses.csv", "-o",
          "{work}/cloud.ply"},
         {"calib", "match"}}},
       {"fitsurf",
        {"fitsurf",
-        {"{work}/cloud.ply", "--keep-box", "-85,-60,-5,85,60,100", "--robust", "reject", "--net", "45x30", "--smoothing",
+        {"{work}/cloud.ply", "--keep-box", "-85,-60,-5,85,60,100", "--robust", "reject", "--net", "60x40", "--smoothing",
          "1", "-o", "{work}/surface.txt"},
         {"triangulate"}}},
       {"toolpath", {"toolpath", {"{work}/surface.txt", "--tool-radius-mm", "3", "-o", "{work}/path.cl"}, {"fitsurf"}}},
@@ -124,11 +128,19 @@ std::vector<std::string> expand_glob(const std::string& pattern) {
 
 struct Report {
   bool failed = false;
+  // Figures known to be out of bounds (an open issue): printed FAIL (expected), not failing the
+  // run; one of them within its bound fails the run instead, so the list cannot go stale.
+  std::set<std::string> expected_failures;
+  std::set<std::string> seen;
   void line(const std::string& name, double value, const std::string& unit, double bound) {
     const bool ok = std::isfinite(value) && value <= bound;
-    failed = failed || !ok;
+    const bool expected = expected_failures.count(name) > 0;
+    seen.insert(name);
+    failed = failed || (ok == expected);
     std::cout << name << ": " << format_double(value) << " " << unit << " (bound " << format_double(bound) << ") "
-              << (ok ? "ok" : "FAIL") << "\n";
+              << (ok ? (expected ? "ok, but expected to FAIL: drop --expect-fail" : "ok")
+                     : (expected ? "FAIL (expected)" : "FAIL"))
+              << "\n";
   }
   void missing(const std::string& name, const std::string& why) {
     std::cout << name << ": not yet available (" << why << ")\n";
@@ -337,6 +349,8 @@ std::map<std::string, std::string> run_pipeline(const std::string& bin_dir, cons
 int main(int argc, char** argv) {
   std::string bin_dir = PHOTOMILL_BIN_DIR, work_dir, truth_dir, outputs_dir, until;
   bool small = false;
+  Bounds bounds;
+  std::vector<std::string> expect_fail;
   return tool::run(
       argc, argv,
       {"synth_accuracy", "run the pipeline on a synth scene and compare every stage with the truth",
@@ -355,11 +369,17 @@ int main(int argc, char** argv) {
         truth->needs(outputs);
         outputs->needs(truth);
         work->excludes(truth);
+        app.add_option("--surface-rms-bound-mm", bounds.surface_rms_mm, "Bound on the surface deviation RMS, mm")
+            ->capture_default_str()->check(CLI::PositiveNumber);
+        app.add_option("--expect-fail", expect_fail,
+                       "A figure known to be out of bounds (its name as printed, e.g. 'tool path gouge max'): "
+                       "FAIL is expected, ok fails the run")
+            ->take_last();
       },
       [&] {
         if (work_dir.empty() && truth_dir.empty()) throw UsageError("give --work-dir DIR, or --truth DIR --outputs DIR");
-        const Bounds bounds;
         Report report;
+        report.expected_failures.insert(expect_fail.begin(), expect_fail.end());
         if (!truth_dir.empty()) {
           evaluate(truth_dir, outputs_dir, {}, bounds, report);
         } else {
@@ -382,6 +402,9 @@ int main(int argc, char** argv) {
           o.command_line = "synth_accuracy";
           synth::write_dataset(o, set.string());
           evaluate(set, out, run_pipeline(bin_dir, set, out, until, report), bounds, report);
+        }
+        for (const auto& name : report.expected_failures) {
+          if (!report.seen.count(name)) throw UsageError("--expect-fail '" + name + "': no figure of that name was evaluated");
         }
         if (report.failed) throw std::runtime_error("some figures are out of bounds or a stage failed");
       });
