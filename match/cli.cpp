@@ -76,6 +76,9 @@ void add_options(CLI::App& app, Cli& c) {
       ->group(lsm)->capture_default_str()->check(CLI::Range(2, 100));
   app.add_option("--lsm-max-shift-px", c.lsm.max_shift_px, "Refuse an alignment that moves the point farther")
       ->group(lsm)->capture_default_str()->check(CLI::Range(0.01, 100.0));
+  app.add_flag("--lsm-quadratic", c.lsm.quadratic,
+               "Second-order terms in the window's geometric model: unbiased on curved surfaces, 14 unknowns instead of 8")
+      ->group(lsm);
   app.add_option("--lsm-min-correlation", c.lsm.min_correlation, "Refuse an alignment whose windows correlate less")
       ->group(lsm)->capture_default_str()->check(CLI::Range(-1.0, 1.0));
   app.add_option("-j,--jobs", o.jobs, "Image pairs matched in parallel (0: all cores)")

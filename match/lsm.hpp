@@ -9,7 +9,14 @@
 //   f(p_ref + d) = r0 + r1 * g(A d + t) + e,
 // f the reference image, g the search image, A (2x2) and t (the search point) the affine
 // geometric transformation, r0 and r1 brightness and contrast; the 8 parameters are found by
-// Gauss-Newton on sum e^2, with the gradients of g by central differences of bilinear samples.
+// Gauss-Newton on sum e^2, with the gradients of g from the cubic-convolution samples.
+// With `quadratic`, the geometric model gains second-order terms, A d + t + C (dx^2, dx dy, dy^2)
+// with C 2x3 (14 parameters; LSM with higher-order geometric models: Bethmann & Luhmann 2010,
+// "Least-squares matching with advanced geometric transformation models", ISPRS Archives
+// XXXVIII-5). The map between two photos of a curved surface has such terms; fitted by A d + t
+// alone, t moves off the true match of the reference point by about C E[m], the quadratic part's
+// mean over the window (all of one sign on a shoulder), which is what put the demo's points
+// 0.046 mm inside its convex shoulders (docs/match.md).
 #pragma once
 
 #include <optional>
@@ -24,6 +31,11 @@ struct LsmOptions {
   double window_per_size = 1.0;
   int min_half_window_px = 5;
   int max_half_window_px = 15;
+  // Adds second-order terms to the geometric model (x = t + A d + q(d), q quadratic in d): on a
+  // curved surface the map between two photos is not affine, and the best affine fit over the
+  // window moves t off the reference point's true match by about the quadratic part's mean over
+  // the window (see lsm_align).
+  bool quadratic = false;
   int max_iterations = 30;
   // Converged when the point moves by less than this in an iteration (and the window's corners too).
   double converged_px = 0.01;
