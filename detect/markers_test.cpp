@@ -527,6 +527,7 @@ INSTANTIATE_TEST_SUITE_P(
                    {"--aruco", "DICT_4X4_50", "--aruco-dict-file", "{dir}/d.yml", "{page}"},
                    2,
                    "excludes"},
+        GoldenCase{"negative_cap_cell", {"--features", "{dir}/feat", "--cap-cell-px", "-1", "{page}"}, 2, "--cap-cell-px"},
         GoldenCase{"nothing_to_detect", {"{page}"}, 2, "--aruco DICT"},
         GoldenCase{"no_images", {"--aruco", "DICT_4X4_50"}, 2, "no images"}),
     [](const auto& info) { return info.param.name; });

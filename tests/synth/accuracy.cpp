@@ -72,7 +72,7 @@ const std::map<std::string, Stage>& stages() {
       {"match",
        {"match",
         {"{work}/observations.csv", "--features", "{work}/features", "--camera", "{work}/camera.yaml", "--poses",
-         "{work}/marker_poses.csv", "--min-track-length", "2", "--flann-checks", "16", "--lsm-max-half-window-px", "5", "-o",
+         "{work}/marker_poses.csv", "--min-track-length", "2", "--flann-checks", "16", "--lsm-quadratic", "-o",
          "{work}/tracks.csv"},
         {"triangulate-markers"}}},
       {"triangulate",
