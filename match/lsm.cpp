@@ -139,7 +139,9 @@ std::optional<double> window_correlation(const cv::Mat& f, const Eigen::Vector2d
 // with the Jacobian of the model r0 + r1 g(A d + t):
 //   d/da_ij = r1 * dg/dx_i * d_j,  d/dt_i = r1 * dg/dx_i,  d/dr0 = 1,  d/dr1 = g,
 // and the normal equations (J^T J) dp = J^T e solved by LDL^T (Gruen 1985, eq. 8-12).
-// The offsets d are scaled by 1/h inside the solve so the eight unknowns are of similar size.
+// With `quadratic`, six more: g is sampled at A d + t + C m, m = (dx^2, dx dy, dy^2), and
+//   d/dc_ik = r1 * dg/dx_i * m_k (Bethmann & Luhmann 2010).
+// The offsets d are scaled by 1/h inside the solve so the unknowns are of similar size.
 std::optional<LsmResult> lsm_align(const cv::Mat& f, const Eigen::Vector2d& ref_px, int h, const cv::Mat& g,
                                    const Eigen::Matrix2d& A0, const Eigen::Vector2d& t0, const LsmOptions& o,
                                    LsmFailure* why) {
