@@ -46,16 +46,18 @@ struct Warp {
     return {qx.dot(m), qy.dot(m)};
   }
   Eigen::Vector2d map(const Eigen::Vector2d& p) const { return A * (p - c) + c + shift + bend(p - c); }
+  // The map's derivative at p: its local affine part.
+  Eigen::Matrix2d jacobian(const Eigen::Vector2d& p) const {
+    const Eigen::Vector2d d = p - c;
+    Eigen::Matrix2d J = A;
+    J.row(0) += Eigen::RowVector2d(2 * qx[0] * d.x() + qx[1] * d.y(), qx[1] * d.x() + 2 * qx[2] * d.y());
+    J.row(1) += Eigen::RowVector2d(2 * qy[0] * d.x() + qy[1] * d.y(), qy[1] * d.x() + 2 * qy[2] * d.y());
+    return J;
+  }
   // The inverse by Newton's method from the affine inverse.
   Eigen::Vector2d unmap(const Eigen::Vector2d& q) const {
     Eigen::Vector2d p = A.inverse() * (q - c - shift) + c;
-    for (int it = 0; it < 20 && (qx.any() || qy.any()); ++it) {
-      const Eigen::Vector2d d = p - c;
-      Eigen::Matrix2d J = A;
-      J.row(0) += Eigen::RowVector2d(2 * qx[0] * d.x() + qx[1] * d.y(), qx[1] * d.x() + 2 * qx[2] * d.y());
-      J.row(1) += Eigen::RowVector2d(2 * qy[0] * d.x() + qy[1] * d.y(), qy[1] * d.x() + 2 * qy[2] * d.y());
-      p -= J.inverse() * (map(p) - q);
-    }
+    for (int it = 0; it < 20 && (qx.any() || qy.any()); ++it) p -= jacobian(p).inverse() * (map(p) - q);
     return p;
   }
 };
@@ -142,12 +144,8 @@ TEST(Lsm, QuadraticModelTakesOutTheBendOfACurvedSurface) {
       const Eigen::Vector2d ref(140 + 30 * (i % 5) + 0.37, 140 + 30 * (i / 5) + 0.61);
       const Eigen::Vector2d truth = w.map(ref);
       // The start: the map's local affine part at ref, a pixel off.
-      const Eigen::Vector2d d = ref - w.c;
-      Eigen::Matrix2d J = w.A;
-      J.row(0) += Eigen::RowVector2d(2 * w.qx[0] * d.x() + w.qx[1] * d.y(), w.qx[1] * d.x() + 2 * w.qx[2] * d.y());
-      J.row(1) += Eigen::RowVector2d(2 * w.qy[0] * d.x() + w.qy[1] * d.y(), w.qy[1] * d.x() + 2 * w.qy[2] * d.y());
       LsmFailure why = LsmFailure::None;
-      const auto r = lsm_align(f, ref, 12, g, J, truth + Eigen::Vector2d(0.7, 0.5), o, &why);
+      const auto r = lsm_align(f, ref, 12, g, w.jacobian(ref), truth + Eigen::Vector2d(0.7, 0.5), o, &why);
       EXPECT_TRUE(r.has_value()) << (quadratic ? "quadratic" : "affine") << " point " << i << ": " << to_string(why);
       if (!r) continue;
       sum += (r->point_px - truth).squaredNorm();
