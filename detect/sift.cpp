@@ -68,28 +68,25 @@ FeatureSet detect_sift(const cv::Mat& grey, const std::string& image_name, const
 }
 
 std::vector<std::size_t> spread_order(const std::vector<cv::KeyPoint>& keypoints, int cell_px) {
-  const auto cell_of = [&](const cv::KeyPoint& k) {
-    return std::pair<long, long>(static_cast<long>(std::floor(k.pt.x / cell_px)),
-                                 static_cast<long>(std::floor(k.pt.y / cell_px)));
-  };
+  std::vector<std::pair<long, long>> cell(keypoints.size());
+  for (std::size_t k = 0; k < keypoints.size(); ++k) {
+    cell[k] = {static_cast<long>(std::floor(keypoints[k].pt.x / cell_px)),
+               static_cast<long>(std::floor(keypoints[k].pt.y / cell_px))};
+  }
+  const auto stronger = [&](std::size_t a, std::size_t b) { return keypoints[a].response > keypoints[b].response; };
   std::vector<std::size_t> by_cell(keypoints.size());
   std::iota(by_cell.begin(), by_cell.end(), std::size_t{0});
-  std::stable_sort(by_cell.begin(), by_cell.end(), [&](std::size_t a, std::size_t b) {
-    const auto ca = cell_of(keypoints[a]), cb = cell_of(keypoints[b]);
-    if (ca != cb) return ca < cb;
-    return keypoints[a].response > keypoints[b].response;
-  });
+  std::stable_sort(by_cell.begin(), by_cell.end(),
+                   [&](std::size_t a, std::size_t b) { return cell[a] != cell[b] ? cell[a] < cell[b] : stronger(a, b); });
   std::vector<std::size_t> rank(keypoints.size());
   for (std::size_t k = 0; k < by_cell.size(); ++k) {
-    const bool same_cell = k > 0 && cell_of(keypoints[by_cell[k]]) == cell_of(keypoints[by_cell[k - 1]]);
+    const bool same_cell = k > 0 && cell[by_cell[k]] == cell[by_cell[k - 1]];
     rank[by_cell[k]] = same_cell ? rank[by_cell[k - 1]] + 1 : 0;
   }
   std::vector<std::size_t> order(keypoints.size());
   std::iota(order.begin(), order.end(), std::size_t{0});
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    if (rank[a] != rank[b]) return rank[a] < rank[b];
-    return keypoints[a].response > keypoints[b].response;
-  });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return rank[a] != rank[b] ? rank[a] < rank[b] : stronger(a, b); });
   return order;
 }
 
