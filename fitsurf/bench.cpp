@@ -262,16 +262,18 @@ int main(int argc, char** argv) {
   }
   if (want("sparse")) {
   // Sparse marker-like points: a jittered grid (15x10: 10 mm apart; 30x20: 5 mm), noise
-  // 0.01 mm, the default smoothing or --noise-mm 0.01; deviation and curvature inside the
-  // points' hull.
-  std::printf("\n%-8s %6s %-16s %9s %10s %10s %9s %9s %6s %9s\n", "shape", "points", "smoothing", "lambda", "truth RMS",
+  // 0.01 mm, the default smoothing or --noise-mm 0.01, each with smoothing order 2 (thin plate)
+  // and 3; deviation and curvature inside the points' hull.
+  std::printf("\n%5s %-8s %6s %-16s %9s %10s %10s %9s %9s %6s %9s\n", "order", "shape", "points", "smoothing", "lambda", "truth RMS",
               "truth max", "max curv", "true curv", "ratio", "TPS max");
   for (const auto& s : test::shapes()) {
     for (int nx : {15, 30}) {
       const PointCloud cloud = cloud_of(test::sample_grid(s, nx, nx * 2 / 3, 45.0 / nx, 0.01, 4));
+      for (int order : {2, 3}) {
       for (double noise : {0.0, 0.01}) {
         Options o;
         o.fit.threads = threads;
+        o.fit.smoothing_order = order;
         o.fit.noise_mm = noise;
         o.fit.fold.max_slope_deg = 90;  // report, do not refuse
         const Result r = fit_point_cloud(cloud, o);
@@ -290,9 +292,10 @@ int main(int argc, char** argv) {
             tps_max = std::max(tps_max, test::distance_to_truth(s, Eigen::Vector3d(x.x(), x.y(), tps(x.x(), x.y()))));
           }
         }
-        std::printf("%-8s %6zu %-16s %9.3g %10.5f %10.5f %9.5f %9.5f %6.2f %9.5f\n", s.name.c_str(), cloud.points_mm.size(),
+        std::printf("%5d %-8s %6zu %-16s %9.3g %10.5f %10.5f %9.5f %9.5f %6.2f %9.5f\n", order, s.name.c_str(), cloud.points_mm.size(),
                     noise > 0 ? "--noise-mm 0.01" : "default", r.fit.smoothing_mm4, dev.rms_mm, dev.max_mm,
                     dev.max_curvature, dev.true_max_curvature, dev.max_curvature / dev.true_max_curvature, tps_max);
+      }
       }
     }
   }

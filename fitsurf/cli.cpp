@@ -59,9 +59,14 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--plane", c.plane, "Parameter plane: best-fit plane of the points (pca) or world xy")
       ->capture_default_str()->check(CLI::IsMember({"pca", "xy"}))->group(srf);
   app.add_option("--smoothing", f.smoothing_mm4,
-                 "Thin-plate smoothing weight lambda, mm^4 (its 4th root is the length below which detail is "
-                 "smoothed away); 0 = none")
+                 "Smoothing weight lambda, mm^4 (order 2; mm^6 with --smoothing-order 3): its 4th (6th) root is the "
+                 "length below which detail is smoothed away; 0 = none")
       ->capture_default_str()->group(srf);
+  app.add_option("--smoothing-order", f.smoothing_order,
+                 "Derivatives the smoothing penalises: 2 thin plate (bends; a plane costs nothing), 3 (changes of "
+                 "bend; any quadric costs nothing, so gaps on curved parts are bridged along the curvature instead "
+                 "of flattened)")
+      ->capture_default_str()->check(CLI::Range(2, 3))->group(srf);
   app.add_option("--noise-mm", f.noise_mm,
                  "Noise of the points (standard deviation, mm): choose the smoothing so the residuals match it "
                  "(Reinsch), instead of --smoothing; for sparse noisy points such as markers")
@@ -95,6 +100,13 @@ void add_options(CLI::App& app, Cli& c) {
       ->capture_default_str()->group(slv);
   app.add_option("--robust-floor-mm", f.robust_min_scale_mm,
                  "Smallest robust standard deviation: residuals below threshold x this are never outliers")
+      ->capture_default_str()->group(slv);
+  app.add_flag("--weight-by-sigma", c.options.weight_by_sigma,
+               "Weight each point by 1/sigma^2 from the cloud's sigma_mm property (triangulate's standard deviation "
+               "of the point): a point seen in two photos counts less than one seen in eight")
+      ->group(slv);
+  app.add_option("--sigma-floor-mm", c.options.sigma_floor_mm,
+                 "Smallest sigma_mm --weight-by-sigma uses (marker corners and control points are near 0)")
       ->capture_default_str()->group(slv);
   app.add_option("--threads", f.threads, "Worker threads (0 = all cores)")->capture_default_str()->group(slv);
 

@@ -174,7 +174,7 @@ BSplineSurface make_surface(const SplineSpace& s, const Eigen::MatrixXd& X) {
 class NetSolver {
 public:
   NetSolver(SplineSpace space, const FitOptions& o, double lu, double lv)
-      : space_(std::move(space)), o_(o), K_(thin_plate_matrix(space_, lu, lv)), lambda_(o.smoothing_mm4) {}
+      : space_(std::move(space)), o_(o), K_(thin_plate_matrix(space_, lu, lv, o.smoothing_order)), lambda_(o.smoothing_mm4) {}
 
   void set_smoothing(double lambda_mm4) { lambda_ = lambda_mm4; }
   double smoothing() const { return lambda_; }
@@ -364,6 +364,7 @@ void validate(const FitOptions& o) {
            std::to_string(o.poles_u) + "x" + std::to_string(o.poles_v));
   need(static_cast<long long>(o.poles_u) * o.poles_v <= 4'000'000, "control net too large (at most 4 million poles)");
   need(std::isfinite(o.smoothing_mm4) && o.smoothing_mm4 >= 0, "--smoothing must be >= 0");
+  need(o.smoothing_order == 2 || o.smoothing_order == 3, "--smoothing-order must be 2 or 3");
   need(std::isfinite(o.noise_mm) && o.noise_mm >= 0, "--noise-mm must be >= 0");
   need(o.max_rounds >= 1, "--max-rounds must be >= 1");
   need(o.min_rms_gain >= 0 && o.min_rms_gain < 1, "--min-gain must be in [0, 1)");
@@ -399,8 +400,13 @@ std::vector<double> averaged_knots(std::vector<double> params, int num_poles, in
   return U;
 }
 
-FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptions& o) {
+FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptions& o,
+                      const std::vector<double>& point_weights) {
   validate(o);
+  if (!point_weights.empty() && point_weights.size() != points.size()) {
+    throw UsageError("fit_surface: " + std::to_string(point_weights.size()) + " point weights for " +
+                     std::to_string(points.size()) + " points");
+  }
   const int p = o.degree_u, q = o.degree_v;
   const std::size_t needed = static_cast<std::size_t>((p + 1) * (q + 1));
   if (points.size() < needed) {
@@ -441,8 +447,17 @@ FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptio
   } else {
     r.smoothing_mm4 = o.smoothing_mm4;
   }
-  std::vector<double> w;  // empty: all 1
+  std::vector<double> w;  // robust weights; empty: all 1
   std::vector<double> d;
+  // The weights of the fit: the points' own (point_weights) times the robust ones.
+  auto total = [&](const std::vector<double>& robust) {
+    if (point_weights.empty()) return robust;
+    std::vector<double> t(point_weights);
+    if (!robust.empty()) {
+      for (std::size_t k = 0; k < t.size(); ++k) t[k] *= robust[k];
+    }
+    return t;
+  };
   // RMS of the previous round's residuals under the weights of this round's fit: with the weights
   // fixed, refitting and then projecting can only lower it, so the gain measures convergence.
   double previous = std::numeric_limits<double>::infinity();
@@ -452,14 +467,14 @@ FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptio
   const std::vector<Eigen::Vector2d> plane_uv = reweight && o.parameter_correction ? uv : std::vector<Eigen::Vector2d>{};
   bool weighted = false;
   for (int round = 0; round < o.max_rounds; ++round) {
-    r.local_surface = make_surface(space, solver.solve(uv, local, w));
+    r.local_surface = make_surface(space, solver.solve(uv, local, total(w)));
     r.uv = uv;
     if (o.parameter_correction) {
       project_points(r.local_surface, local, r.uv, d, o.projection, o.threads);
     } else {
       parameter_residuals(r.local_surface, local, uv, d, o.threads);
     }
-    const double rms = weighted_rms(d, w);
+    const double rms = weighted_rms(d, total(w));
     r.round_rms_mm.push_back(rms);
     log::debug("round " + std::to_string(round + 1) + ": RMS " + sig(rms, 6) + " mm");
     if (!o.parameter_correction && !reweight) break;
@@ -477,7 +492,7 @@ FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptio
       w = std::move(next);
     }
     if (rms >= previous * (1 - o.min_rms_gain) && !weights_changed) break;
-    previous = weighted_rms(d, w);
+    previous = weighted_rms(d, total(w));
     if (o.parameter_correction) uv = r.uv;
     if (weights_changed && !weighted && !plane_uv.empty()) {
       weighted = true;

@@ -69,7 +69,11 @@ struct FitOptions {
   int poles_v = 30;                   // along v (m + 1)
   KnotPlacement knots = KnotPlacement::Uniform;
   PlaneChoice plane = PlaneChoice::Pca;
-  double smoothing_mm4 = 1e-2;        // lambda of the thin-plate term (normal_equations.hpp)
+  double smoothing_mm4 = 1e-2;        // lambda of the smoothing term (normal_equations.hpp); mm^6 for order 3
+  // m of the smoothing energy E_m (normal_equations.hpp): 2 = thin plate (second derivatives;
+  // planes are free), 3 = third derivatives (quadrics are free, so a gap on a curved part is
+  // bridged along its curvature instead of being flattened; docs/fitsurf.md, figures).
+  int smoothing_order = 2;
   // > 0: choose lambda instead so that the residual RMS of the first fit equals this noise level
   // (Reinsch's criterion; for sparse noisy points such as markers, whose noise is known).
   double noise_mm = 0;
@@ -119,7 +123,10 @@ struct FitResult {
 // Fits the points (world mm). Throws GeometryError for degenerate input: too few points for the
 // degrees, coincident or collinear points, a cloud folding over the parameter plane, a singular
 // system (empty net cells with smoothing 0), a surface that turns over inside the data.
-FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptions& options);
+// point_weights: one positive weight per point (e.g. 1 / sigma^2 of the point), multiplied into
+// the robust weights; empty = all 1.
+FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptions& options,
+                      const std::vector<double>& point_weights = {});
 
 // The surface folds over the parameter plane inside `boundary_uv` (or the whole domain when it
 // is empty)? Throws GeometryError naming the place. Part of fit_point_cloud, after the outline.

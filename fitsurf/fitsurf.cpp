@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "fitsurf/numbers.hpp"
 #include "formats/error.hpp"
 
 namespace photomill::fitsurf {
@@ -48,7 +49,39 @@ ResidualStats residual_stats(const std::vector<double>& d, const FitResult& fit)
   return s;
 }
 
-Result fit_point_cloud(const PointCloud& cloud, const Options& options) {
+namespace {
+
+// 1 / max(sigma_k, floor)^2 of the kept points, scaled to mean 1 (so lambda keeps its meaning).
+std::vector<double> sigma_weights(const PointCloud& cloud, const std::vector<std::size_t>& kept, double floor_mm,
+                                  const std::string& source) {
+  const PointProperty* sigma = cloud.find("sigma_mm");
+  if (!sigma) {
+    throw InputError(source, 0, "--weight-by-sigma: the cloud has no sigma_mm property (triangulate writes one)");
+  }
+  std::vector<double> w(kept.size());
+  double sum = 0;
+  for (std::size_t i = 0; i < kept.size(); ++i) {
+    const double s = sigma->values[kept[i]];
+    if (!(s >= 0) || !std::isfinite(s)) {
+      throw InputError(source, 0, "--weight-by-sigma: point " + std::to_string(kept[i] + 1) + " has sigma_mm " + sig(s, 6) +
+                                      " (must be finite and >= 0)");
+    }
+    const double m = std::max(s, floor_mm);
+    w[i] = 1.0 / (m * m);
+    sum += w[i];
+  }
+  if (sum > 0) {
+    for (double& x : w) x *= static_cast<double>(w.size()) / sum;
+  }
+  return w;
+}
+
+}  // namespace
+
+Result fit_point_cloud(const PointCloud& cloud, const Options& options, const std::string& source) {
+  if (!(options.sigma_floor_mm > 0) || !std::isfinite(options.sigma_floor_mm)) {
+    throw UsageError("--sigma-floor-mm must be positive");
+  }
   const auto t0 = std::chrono::steady_clock::now();
   Result r;
   r.input_points = cloud.points_mm.size();
@@ -58,13 +91,15 @@ Result fit_point_cloud(const PointCloud& cloud, const Options& options) {
   points.reserve(r.selection.kept.size());
   for (std::size_t k : r.selection.kept) points.push_back(cloud.points_mm[k]);
 
+  std::vector<double> weights;
+  if (options.weight_by_sigma) weights = sigma_weights(cloud, r.selection.kept, options.sigma_floor_mm, source);
   FitOptions fit_options = options.fit;
   if (options.tolerance) {
     r.tolerance = choose_net(points, options.fit, *options.tolerance);
     fit_options.poles_u = r.tolerance->poles_u;
     fit_options.poles_v = r.tolerance->poles_v;
   }
-  r.fit = fit_surface(points, fit_options);
+  r.fit = fit_surface(points, fit_options, weights);
   r.fit.surface.boundary_uv = data_outline(r.fit.uv, r.fit.weight, r.fit.box.length_u_mm(),
                                            r.fit.box.length_v_mm(), options.outline);
   r.fit.local_surface.boundary_uv = r.fit.surface.boundary_uv;

@@ -21,6 +21,11 @@ struct Options {
   FitOptions fit;
   OutlineOptions outline;
   std::optional<ToleranceOptions> tolerance;  // set: choose the net by tolerance
+  // Weight each point by 1 / max(sigma_mm, sigma_floor_mm)^2 from the cloud's sigma_mm property
+  // (triangulate's standard deviation of the point), normalised to mean 1: least squares with the
+  // points' a-priori variances (Gauss-Markov), so a two-view point counts less than one seen by 8.
+  bool weight_by_sigma = false;
+  double sigma_floor_mm = 0.005;
 };
 
 // Statistics of the signed orthogonal residuals d (mm) of the fitted points.
@@ -44,7 +49,9 @@ struct Result {
   double seconds = 0;       // wall time of fit_point_cloud
 };
 
-Result fit_point_cloud(const PointCloud& cloud, const Options& options);
+// source names the cloud in errors (a cloud without sigma_mm for weight_by_sigma). With a
+// tolerance, the net is chosen without the sigma weights; the final fit uses them.
+Result fit_point_cloud(const PointCloud& cloud, const Options& options, const std::string& source = "input");
 
 // The fitted points with their input properties and two more scalar fields: residual_mm (signed
 // orthogonal distance to the surface, positive on the side of its normal) and weight (robust

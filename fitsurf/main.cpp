@@ -21,7 +21,7 @@ int main(int argc, char** argv) {
         const fitsurf::Options options = fitsurf::to_options(cli);
         const PointCloud cloud = read_point_cloud(*tool::open_input(cli.input), tool::source_name(cli.input));
         if (cloud.points_mm.empty()) throw InputError(tool::source_name(cli.input), 0, "no points: nothing to fit");
-        const fitsurf::Result result = fitsurf::fit_point_cloud(cloud, options);
+        const fitsurf::Result result = fitsurf::fit_point_cloud(cloud, options, tool::source_name(cli.input));
         for (const auto& line : fitsurf::summary(result, options)) log::info(line);
         fitsurf::write_outputs(cli, options, cloud, result);
       });

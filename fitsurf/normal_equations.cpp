@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "fitsurf/parallel.hpp"
+#include "formats/error.hpp"
 
 namespace photomill::fitsurf {
 
@@ -113,15 +114,15 @@ void gauss_legendre(int n, std::vector<double>& nodes, std::vector<double>& weig
 
 namespace {
 
-// Gram matrices G0, G1, G2 of one direction, dense nb x nb (nb = number of basis functions; a
-// few hundred at most, and only used to fill the stencil).
-std::array<Eigen::MatrixXd, 3> gram_matrices(int nb, int p, const std::vector<double>& U) {
-  std::array<Eigen::MatrixXd, 3> G;
+// Gram matrices G0 .. G3 of one direction, dense nb x nb (nb = number of basis functions; a
+// few hundred at most, and only used to fill the stencil). Derivatives above the degree are 0.
+std::array<Eigen::MatrixXd, 4> gram_matrices(int nb, int p, const std::vector<double>& U) {
+  std::array<Eigen::MatrixXd, 4> G;
   for (auto& g : G) g = Eigen::MatrixXd::Zero(nb, nb);
   std::vector<double> x, w;
   gauss_legendre(p + 1, x, w);
-  const int nd = std::min(2, p);
-  std::vector<double> ders(static_cast<std::size_t>(3 * (p + 1)), 0.0);
+  const int nd = std::min(3, p);
+  std::vector<double> ders(static_cast<std::size_t>((nd + 1) * (p + 1)), 0.0);
   for (int span = p; span < nb; ++span) {
     const double a = U[static_cast<std::size_t>(span)], b = U[static_cast<std::size_t>(span + 1)];
     if (!(b > a)) continue;
@@ -145,11 +146,18 @@ std::array<Eigen::MatrixXd, 3> gram_matrices(int nb, int p, const std::vector<do
 
 }  // namespace
 
-BandedSymmetric thin_plate_matrix(const SplineSpace& s, double length_u_mm, double length_v_mm) {
+BandedSymmetric thin_plate_matrix(const SplineSpace& s, double length_u_mm, double length_v_mm, int order) {
+  if (order < 2 || order > 3) throw UsageError("smoothing order must be 2 or 3");
   const auto Gu = gram_matrices(s.nu, s.p, s.U);
   const auto Gv = gram_matrices(s.nv, s.q, s.V);
-  const double lu2 = length_u_mm * length_u_mm, lv2 = length_v_mm * length_v_mm;
-  const double c_uu = 1.0 / (lu2 * lu2), c_uv = 1.0 / (lu2 * lv2), c_vv = 1.0 / (lv2 * lv2);
+  // E_m = sum_k C(m, k) integral (d^m S / dx^(m-k) dy^k)^2 dx dy with x = L_u u, y = L_v v:
+  // term k is C(m, k) / (L_u^(2(m-k)) L_v^(2k)) G_(m-k),u (x) G_k,v.
+  const int binomial[2][4] = {{1, 2, 1, 0}, {1, 3, 3, 1}};
+  std::array<double, 4> c{};
+  for (int k = 0; k <= order; ++k) {
+    c[static_cast<std::size_t>(k)] = binomial[order - 2][k] / (std::pow(length_u_mm, 2 * (order - k)) *
+                                                               std::pow(length_v_mm, 2 * k));
+  }
   BandedSymmetric K(s);
   for (int i = 0; i < s.nu; ++i) {
     for (int j = 0; j < s.nv; ++j) {
@@ -158,8 +166,12 @@ BandedSymmetric thin_plate_matrix(const SplineSpace& s, double length_u_mm, doub
         for (int dj = (di == 0 ? 0 : -s.q); dj <= s.q; ++dj) {
           const int i2 = i + di, j2 = j + dj;
           if (j2 < 0 || j2 >= s.nv) continue;
-          K.at(g, di, dj) = c_uu * Gu[2](i, i2) * Gv[0](j, j2) + 2.0 * c_uv * Gu[1](i, i2) * Gv[1](j, j2) +
-                            c_vv * Gu[0](i, i2) * Gv[2](j, j2);
+          double e = 0;
+          for (int k = 0; k <= order; ++k) {
+            const auto ku = static_cast<std::size_t>(order - k), kv = static_cast<std::size_t>(k);
+            e += c[kv] * Gu[ku](i, i2) * Gv[kv](j, j2);
+          }
+          K.at(g, di, dj) = e;
         }
       }
     }

@@ -9,6 +9,11 @@
 //   F(P) = (1/W) sum_k w_k |Q_k - S(u_k, v_k)|^2  +  lambda * E(P) / (L_u L_v),   W = sum_k w_k,
 //   E(P) = integral over the part of |S_xx|^2 + 2 |S_xy|^2 + |S_yy|^2 dx dy   (thin-plate energy)
 //
+// or, with smoothing order m = 3, E_3(P) = integral of |S_xxx|^2 + 3 |S_xxy|^2 + 3 |S_xyy|^2 +
+// |S_yyy|^2 (the rotation-invariant energy of order 3, whose minimisers are Duchon's 1977
+// polyharmonic splines of order 3; its null space is the quadrics, so smoothing does not flatten
+// a curved part where the data are sparse), lambda then in mm^6.
+//
 // with x = L_u u, y = L_v v the parameter plane in mm (L_u, L_v: the data's extent), so lambda is
 // in mm^4 and lambda^(1/4) is the length below which shape detail is smoothed away, whatever the
 // number of points or the size of the part. Setting dF/dP = 0 gives  M P = B  with
@@ -86,10 +91,12 @@ DataNormalEquations accumulate_normal_equations(const SplineSpace& space,
                                                 const std::vector<Eigen::Vector3d>& points,
                                                 const std::vector<double>& weights, int threads);
 
-// The thin-plate energy matrix K above, for a parameter rectangle of length_u_mm x length_v_mm.
-// The 1-D Gram matrices are integrated exactly, knot span by knot span, with (p+1)-point
-// Gauss-Legendre quadrature (the integrands are polynomials of degree <= 2p there).
-BandedSymmetric thin_plate_matrix(const SplineSpace& space, double length_u_mm, double length_v_mm);
+// The smoothing energy matrix K above (order 2: thin plate; order 3: third derivatives, term k
+// C(3,k) / (L_u^(2(3-k)) L_v^(2k)) G(3-k)_u (x) Gk_v), for a parameter rectangle of
+// length_u_mm x length_v_mm. The 1-D Gram matrices are integrated exactly, knot span by knot span,
+// with (p+1)-point Gauss-Legendre quadrature (the integrands are polynomials of degree <= 2p
+// there); derivatives above the degree are zero. Throws UsageError for other orders.
+BandedSymmetric thin_plate_matrix(const SplineSpace& space, double length_u_mm, double length_v_mm, int order = 2);
 
 // Gauss-Legendre nodes and weights on [-1, 1] (Newton's method on the Legendre polynomial, as in
 // Press et al., Numerical Recipes, 3rd ed., 4.6.1 "gauleg").

@@ -74,7 +74,10 @@ void write_report(std::ostream& out, const Result& r, const Options& o, const st
   j.field("boundary_vertices", s.boundary_uv.size());
   j.end_object();
   j.key("fit").begin_object();
-  j.field("smoothing_mm4", f.smoothing_mm4);
+  // lambda in mm^(2 m): the key names its unit ("smoothing_mm4" for the thin plate, m = 2).
+  j.field(o.fit.smoothing_order == 3 ? "smoothing_mm6" : "smoothing_mm4", f.smoothing_mm4);
+  j.field("smoothing_order", o.fit.smoothing_order);
+  j.field("weight_by_sigma", o.weight_by_sigma);
   j.key("noise_mm");
   if (o.fit.noise_mm > 0) {
     j.value(o.fit.noise_mm);
@@ -132,7 +135,8 @@ std::vector<std::string> summary(const Result& r, const Options& o) {
   if (dropped) s += " (" + std::to_string(dropped) + " of " + std::to_string(r.input_points) + " dropped by selection)";
   s += "; " + std::to_string(f.surface.num_poles_u) + "x" + std::to_string(f.surface.num_poles_v) + " poles, degree " +
        std::to_string(f.surface.degree_u) + "x" + std::to_string(f.surface.degree_v) + ", smoothing " +
-       num(f.smoothing_mm4) + " mm^4" + (o.fit.noise_mm > 0 ? " (for noise " + num(o.fit.noise_mm) + " mm)" : "") + ", " + std::to_string(f.round_rms_mm.size()) + " round" +
+       num(f.smoothing_mm4) + (o.fit.smoothing_order == 3 ? " mm^6 (order 3)" : " mm^4") +
+       (o.weight_by_sigma ? ", points weighted by 1/sigma^2" : "") + (o.fit.noise_mm > 0 ? " (for noise " + num(o.fit.noise_mm) + " mm)" : "") + ", " + std::to_string(f.round_rms_mm.size()) + " round" +
        (f.round_rms_mm.size() == 1 ? "" : "s") + ", " + sig(r.seconds, 3) + " s";
   std::vector<std::string> lines{s};
   s = "residuals: RMS " + num(r.stats.rms_mm) + " mm, max " + num(r.stats.max_abs_mm) + " mm, p50 " +
