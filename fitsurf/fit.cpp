@@ -369,6 +369,7 @@ void validate(const FitOptions& o) {
   need(o.max_rounds >= 1, "--max-rounds must be >= 1");
   need(o.min_rms_gain >= 0 && o.min_rms_gain < 1, "--min-gain must be in [0, 1)");
   need(o.robust_threshold >= 0, "--robust-threshold must be >= 0");
+  need(o.gross_threshold > 0 && o.gross_points_per_pole > 0, "the gross-outlier screening options must be positive");
   need(o.robust_min_scale_mm > 0, "--robust-floor-mm must be positive");
   need(o.cg_tolerance > 0 && o.cg_max_iterations > 0, "CG tolerance and iterations must be positive");
   need(o.threads >= 0, "--threads must be >= 0");
@@ -466,6 +467,46 @@ FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptio
   // parameters of the points there, which no reweighting repairs (docs/fitsurf.md, figures).
   const std::vector<Eigen::Vector2d> plane_uv = reweight && o.parameter_correction ? uv : std::vector<Eigen::Vector2d>{};
   bool weighted = false;
+  // The screening's coarse fit has redundancy even where the fine net has too little for reweighting.
+  const bool screen_gross = o.robust != RobustLoss::None &&
+                            static_cast<double>(points.size()) >= o.gross_points_per_pole * static_cast<double>((p + 1) * (q + 1));
+  if (screen_gross) {
+    // Gross outliers first (FitOptions::gross_threshold): heights above the plane at the plane
+    // parameters against a coarse first fit (about gross_points_per_pole points per pole, so one
+    // point tens of mm off cannot pull a spike up to itself and corrupt its neighbours'
+    // residuals), judged against the neighbours' (local_residuals); parameter correction would
+    // hide such a point on the flank of the spike it pulls in the fine fit.
+    SplineSpace coarse = space;
+    const double n = static_cast<double>(points.size()) / o.gross_points_per_pole;
+    const double aspect = r.box.length_u_mm() / r.box.length_v_mm();
+    coarse.nu = std::clamp(static_cast<int>(std::lround(std::sqrt(n * aspect))), p + 1, space.nu);
+    coarse.nv = std::clamp(static_cast<int>(std::lround(std::sqrt(n / aspect))), q + 1, space.nv);
+    coarse.U = knots_for(o.knots, uv, coarse.nu, p, 0);
+    coarse.V = knots_for(o.knots, uv, coarse.nv, q, 1);
+    NetSolver screen_solver(coarse, o, r.box.length_u_mm(), r.box.length_v_mm());
+    screen_solver.set_smoothing(r.smoothing_mm4);
+    bool screened = true;
+    try {
+      parameter_residuals(make_surface(coarse, screen_solver.solve(uv, local, total(w))), local, uv, d, o.threads);
+    } catch (const GeometryError& e) {  // e.g. no smoothing over a gap: the fit itself will say so
+      log::debug(std::string("no gross-outlier screening: ") + e.what());
+      screened = false;
+    }
+    FitOptions gross = o;
+    gross.robust = RobustLoss::Reject;
+    gross.robust_threshold = o.gross_threshold;
+    std::vector<double> screen;
+    const Weighting g = screened ? robust_weights(local_residuals(uv, d, r.box.length_u_mm(), r.box.length_v_mm(), o.threads),
+                                                  gross, screen)
+                                 : Weighting{};
+    r.gross_outliers = g.outliers;
+    if (g.outliers > 0) {
+      log::debug(std::to_string(g.outliers) + " gross outliers (off their neighbours' height by more than " +
+                 sig(g.cutoff_mm, 3) + " mm against a " + std::to_string(coarse.nu) + "x" + std::to_string(coarse.nv) +
+                 " first fit) left out from the start");
+      w = std::move(screen);
+    }
+  }
   for (int round = 0; round < o.max_rounds; ++round) {
     r.local_surface = make_surface(space, solver.solve(uv, local, total(w)));
     r.uv = uv;
@@ -512,6 +553,13 @@ FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptio
     r.robust_scale_mm = wt.scale_mm;
     r.robust_cutoff_mm = wt.cutoff_mm;
     r.outliers = wt.outliers;
+  } else if (!w.empty()) {  // only the gross outliers were left out
+    r.weight = w;
+    r.outlier.assign(points.size(), 0);
+    for (std::size_t k = 0; k < w.size(); ++k) {
+      r.outlier[k] = w[k] == 0.0;
+      r.outliers += r.outlier[k];
+    }
   } else {
     r.weight.assign(points.size(), 1.0);
   }

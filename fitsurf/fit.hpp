@@ -23,6 +23,8 @@
 //      reweighting starts after the first parameter correction, and the first weighting restarts
 //      from the plane parameters (an unweighted fit curled by outliers scrambles the foot points
 //      of the points near it);
+//   (before round 1, with reweighting on: gross outliers screened by their height against a
+//      coarse first fit at the plane parameters, judged locally like step 4 with gross_threshold;)
 //   5. repeat 3-4 until a round lowers the weighted RMS by less than min_rms_gain (relative, with
 //      the weights held fixed, under which it can only decrease) and no weight changes by more
 //      than weight_tolerance, or max_rounds; the last round is the result.
@@ -93,6 +95,14 @@ struct FitOptions {
   double robust_min_scale_mm = 0.02;
   double robust_min_redundancy = 3;   // reweight only with at least this many points per pole
   double weight_tolerance = 0.01;     // rounds go on while a robust weight changes by more than this
+  // Gross outliers are screened before the first round (with reweighting on): a point whose
+  // height above the parameter plane, against a coarse first fit (about gross_points_per_pole
+  // points per pole) at the plane parameters, deviates from its neighbours' by more than
+  // gross_threshold times the robust scale (local, at least the global one) starts with weight 0.
+  // Parameter correction would hide it: a point tens of mm off pulls a spike up to itself in the
+  // fine fit, and its orthogonal distance to the spike's flank is small (docs/fitsurf.md).
+  double gross_threshold = 20;
+  double gross_points_per_pole = 25;
   double min_pivot_ratio = 1e-13;     // LDLT pivots below this times the largest: singular system
   ProjectionOptions projection;
   FrameOptions frame;
@@ -117,6 +127,7 @@ struct FitResult {
   double robust_scale_mm = 0;         // global sigma of the last weighting
   double robust_cutoff_mm = 0;        // threshold * sigma: the smallest cutoff c_k of any point
   std::size_t outliers = 0;           // points whose local deviation |e_k| exceeds c_k
+  std::size_t gross_outliers = 0;     // left out before the first round (FitOptions::gross_threshold)
   std::vector<std::uint8_t> outlier;  // per point: 1 if an outlier (empty without reweighting)
 };
 

@@ -94,6 +94,7 @@ void write_report(std::ostream& out, const Result& r, const Options& o, const st
   j.field("robust_scale_mm", f.robust_scale_mm);
   j.field("robust_cutoff_mm", f.robust_cutoff_mm);
   j.field("outliers", f.outliers);
+  j.field("gross_outliers", f.gross_outliers);
   j.end_object();
   j.key("residuals").begin_object();
   j.field("count", r.stats.count);
@@ -144,6 +145,10 @@ std::vector<std::string> summary(const Result& r, const Options& o) {
   if (f.robust_applied) {
     s += "; " + std::to_string(f.outliers) + " outlier" + (f.outliers == 1 ? "" : "s") + " beyond " +
          num(f.robust_cutoff_mm) + " mm (inlier RMS " + num(r.stats.inlier_rms_mm) + " mm)";
+  }
+  if (f.gross_outliers > 0) {
+    s += "; " + std::to_string(f.gross_outliers) + " gross outlier" + (f.gross_outliers == 1 ? "" : "s") +
+         " left out before the first round";
   }
   lines.push_back(s);
   if (r.tolerance && o.tolerance) {
