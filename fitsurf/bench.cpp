@@ -269,33 +269,35 @@ int main(int argc, char** argv) {
   for (const auto& s : test::shapes()) {
     for (int nx : {15, 30}) {
       const PointCloud cloud = cloud_of(test::sample_grid(s, nx, nx * 2 / 3, 45.0 / nx, 0.01, 4));
+      // The thin-plate spline interpolant of the same points. It passes through the same markers,
+      // so no fit can be within half of its distance from the truth of both it and the truth: the
+      // information limit.
+      const auto tps = test::thin_plate_interpolant(cloud.points_mm);
       for (int order : {2, 3}) {
-      for (double noise : {0.0, 0.01}) {
-        Options o;
-        o.fit.threads = threads;
-        o.fit.smoothing_order = order;
-        o.fit.noise_mm = noise;
-        o.fit.fold.max_slope_deg = 90;  // report, do not refuse
-        const Result r = fit_point_cloud(cloud, o);
-        const auto dev = truth(r.fit, s);
-        // The thin-plate spline interpolant of the same points: its largest distance from the truth
-        // over the same (x, y) samples inside the outline. It passes through the same markers, so
-        // no fit can be within half of this of both it and the truth: the information limit.
-        const auto tps = test::thin_plate_interpolant(cloud.points_mm);
-        double tps_max = 0;
-        const auto& b = r.fit.surface.boundary_uv;
-        for (int a = 0; a < 150; ++a) {
-          for (int c = 0; c < 150; ++c) {
-            const Eigen::Vector2d uv((a + 0.5) / 150, (c + 0.5) / 150);
-            if (!b.empty() && !point_in_polygon(b, uv)) continue;
-            const Eigen::Vector3d x = surface_point(r.fit.surface, uv.x(), uv.y());
-            tps_max = std::max(tps_max, test::distance_to_truth(s, Eigen::Vector3d(x.x(), x.y(), tps(x.x(), x.y()))));
+        for (double noise : {0.0, 0.01}) {
+          Options o;
+          o.fit.threads = threads;
+          o.fit.smoothing_order = order;
+          o.fit.noise_mm = noise;
+          o.fit.fold.max_slope_deg = 90;  // report, do not refuse
+          const Result r = fit_point_cloud(cloud, o);
+          const auto dev = truth(r.fit, s);
+          // The TPS interpolant's largest distance from the truth over the same (x, y) samples
+          // inside this fit's outline.
+          double tps_max = 0;
+          const auto& b = r.fit.surface.boundary_uv;
+          for (int a = 0; a < 150; ++a) {
+            for (int c = 0; c < 150; ++c) {
+              const Eigen::Vector2d uv((a + 0.5) / 150, (c + 0.5) / 150);
+              if (!b.empty() && !point_in_polygon(b, uv)) continue;
+              const Eigen::Vector3d x = surface_point(r.fit.surface, uv.x(), uv.y());
+              tps_max = std::max(tps_max, test::distance_to_truth(s, Eigen::Vector3d(x.x(), x.y(), tps(x.x(), x.y()))));
+            }
           }
+          std::printf("%5d %-8s %6zu %-16s %9.3g %10.5f %10.5f %9.5f %9.5f %6.2f %9.5f\n", order, s.name.c_str(), cloud.points_mm.size(),
+                      noise > 0 ? "--noise-mm 0.01" : "default", r.fit.smoothing_mm4, dev.rms_mm, dev.max_mm,
+                      dev.max_curvature, dev.true_max_curvature, dev.max_curvature / dev.true_max_curvature, tps_max);
         }
-        std::printf("%5d %-8s %6zu %-16s %9.3g %10.5f %10.5f %9.5f %9.5f %6.2f %9.5f\n", order, s.name.c_str(), cloud.points_mm.size(),
-                    noise > 0 ? "--noise-mm 0.01" : "default", r.fit.smoothing_mm4, dev.rms_mm, dev.max_mm,
-                    dev.max_curvature, dev.true_max_curvature, dev.max_curvature / dev.true_max_curvature, tps_max);
-      }
       }
     }
   }

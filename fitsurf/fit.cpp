@@ -471,11 +471,7 @@ FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptio
   const bool screen_gross = o.robust != RobustLoss::None &&
                             static_cast<double>(points.size()) >= o.gross_points_per_pole * static_cast<double>((p + 1) * (q + 1));
   if (screen_gross) {
-    // Gross outliers first (FitOptions::gross_threshold): heights above the plane at the plane
-    // parameters against a coarse first fit (about gross_points_per_pole points per pole, so one
-    // point tens of mm off cannot pull a spike up to itself and corrupt its neighbours'
-    // residuals), judged against the neighbours' (local_residuals); parameter correction would
-    // hide such a point on the flank of the spike it pulls in the fine fit.
+    // Gross outliers first (why and how: FitOptions::gross_threshold).
     SplineSpace coarse = space;
     const double n = static_cast<double>(points.size()) / o.gross_points_per_pole;
     const double aspect = r.box.length_u_mm() / r.box.length_v_mm();

@@ -137,7 +137,8 @@ std::vector<std::string> summary(const Result& r, const Options& o) {
   s += "; " + std::to_string(f.surface.num_poles_u) + "x" + std::to_string(f.surface.num_poles_v) + " poles, degree " +
        std::to_string(f.surface.degree_u) + "x" + std::to_string(f.surface.degree_v) + ", smoothing " +
        num(f.smoothing_mm4) + (o.fit.smoothing_order == 3 ? " mm^6 (order 3)" : " mm^4") +
-       (o.weight_by_sigma ? ", points weighted by 1/sigma^2" : "") + (o.fit.noise_mm > 0 ? " (for noise " + num(o.fit.noise_mm) + " mm)" : "") + ", " + std::to_string(f.round_rms_mm.size()) + " round" +
+       (o.fit.noise_mm > 0 ? " (for noise " + num(o.fit.noise_mm) + " mm)" : "") +
+       (o.weight_by_sigma ? ", points weighted by 1/sigma^2" : "") + ", " + std::to_string(f.round_rms_mm.size()) + " round" +
        (f.round_rms_mm.size() == 1 ? "" : "s") + ", " + sig(r.seconds, 3) + " s";
   std::vector<std::string> lines{s};
   s = "residuals: RMS " + num(r.stats.rms_mm) + " mm, max " + num(r.stats.max_abs_mm) + " mm, p50 " +
