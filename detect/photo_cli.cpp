@@ -84,6 +84,10 @@ void add_photo_options(CLI::App& app, PhotoCli& c) {
       ->group(features);
   app.add_option("--mask-margin-cells", c.options.mask_margin_cells, "Masked margin around each marker, marker cells")
       ->group(features)->capture_default_str()->check(CLI::Range(0.0, 100.0));
+  app.add_option("--mask-clearance-per-size", c.sift.mask_clearance_per_size,
+                 "With --mask-markers, also drop features nearer to the mask than this many times their size (0: "
+                 "only their position is tested)")
+      ->group(features)->capture_default_str()->check(CLI::Range(0.0, 100.0));
   const std::string drawings = "Drawings";
   app.add_option("--draw", c.draw.dir,
                  "Draw what was found over each photo into <image file name>.jpg (or .png) in this folder")

@@ -19,6 +19,9 @@ void validate(const PhotoOptions& o) {
   if (o.mask_markers && !o.dictionary) throw UsageError("--mask-markers needs markers to mask (--aruco or --aruco-dict-file)");
   if (!(o.mask_margin_cells >= 0) || o.mask_margin_cells > 100) throw UsageError("--mask-margin-cells must be in 0..100");
   if (o.sift) validate(*o.sift);
+  if (o.sift && o.sift->mask_clearance_per_size > 0 && !o.mask_markers) {
+    throw UsageError("--mask-clearance-per-size keeps features clear of the marker mask: it needs --mask-markers");
+  }
   if (o.jobs < 0) throw UsageError("--jobs must be 0 (all cores) or positive");
 }
 

@@ -23,6 +23,9 @@ void validate(const SiftOptions& o) {
   if (!(o.edge_threshold > 0) || !std::isfinite(o.edge_threshold)) throw UsageError("--sift-edge-threshold must be positive");
   if (!(o.sigma > 0) || !std::isfinite(o.sigma)) throw UsageError("SIFT sigma must be positive");
   if (!std::isfinite(o.position_offset_px)) throw UsageError("SIFT position offset must be finite");
+  if (!(o.mask_clearance_per_size >= 0) || !std::isfinite(o.mask_clearance_per_size)) {
+    throw UsageError("--mask-clearance-per-size must be a non-negative number");
+  }
 }
 
 FeatureSet detect_sift(const cv::Mat& grey, const std::string& image_name, const SiftOptions& o, const cv::Mat& mask) {
@@ -30,7 +33,35 @@ FeatureSet detect_sift(const cv::Mat& grey, const std::string& image_name, const
   CV_Assert(mask.empty() || (mask.type() == CV_8UC1 && mask.size() == grey.size()));
   std::vector<cv::KeyPoint> keypoints;
   cv::Mat descriptors;
-  if (o.cap_cell_px == 0 || o.max_features == 0) {
+  const bool clearance = !mask.empty() && o.mask_clearance_per_size > 0;
+  if (clearance) {
+    // All keypoints, those too near the mask's blanks dropped, then the cap, then descriptors.
+    const auto sift = cv::SIFT::create(0, o.octave_layers, o.contrast_threshold, o.edge_threshold, o.sigma, CV_8U);
+    std::vector<cv::KeyPoint> all;
+    sift->detect(grey, all, mask);
+    // Euclidean distance of every allowed pixel to the nearest blanked one (Borgefors' 5x5 mask
+    // approximation, within a few hundredths of a pixel).
+    cv::Mat clear_px;
+    cv::distanceTransform(mask, clear_px, cv::DIST_L2, cv::DIST_MASK_5);
+    std::erase_if(all, [&](const cv::KeyPoint& k) {
+      const int x = std::clamp(static_cast<int>(std::lround(k.pt.x)), 0, clear_px.cols - 1);
+      const int y = std::clamp(static_cast<int>(std::lround(k.pt.y)), 0, clear_px.rows - 1);
+      return clear_px.at<float>(y, x) < o.mask_clearance_per_size * k.size;
+    });
+    if (o.max_features > 0) {
+      if (o.cap_cell_px > 0) {
+        const std::vector<std::size_t> order = spread_order(all, o.cap_cell_px);
+        const std::size_t kept = std::min(order.size(), static_cast<std::size_t>(o.max_features));
+        for (std::size_t k = 0; k < kept; ++k) keypoints.push_back(all[order[k]]);
+      } else {
+        cv::KeyPointsFilter::retainBest(all, o.max_features);
+        keypoints = std::move(all);
+      }
+    } else {
+      keypoints = std::move(all);
+    }
+    sift->compute(grey, keypoints, descriptors);
+  } else if (o.cap_cell_px == 0 || o.max_features == 0) {
     // OpenCV keeps the `max_features` best by response itself (KeyPointsFilter::retainBest).
     const auto sift = cv::SIFT::create(o.max_features, o.octave_layers, o.contrast_threshold, o.edge_threshold,
                                        o.sigma, CV_8U);

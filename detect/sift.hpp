@@ -20,6 +20,13 @@ struct SiftOptions {
   // of this side (px): every cell's strongest first, then every cell's second, ... (see
   // spread_order), so dim or shadowed parts of a photo keep features beside bright ones.
   int cap_cell_px = 0;
+  // With a mask: also drop keypoints nearer to a blanked pixel than this many times their size
+  // (OpenCV's keypoint diameter), so no feature's neighbourhood reaches into what the mask blanks.
+  // 0: only the keypoint's own position is tested (OpenCV's mask). Why: a feature just outside a
+  // marker's mask is described, and least-squares matched, mostly by the marker's straight black
+  // border, along which it can slide (the aperture problem); on the demo such two-view points sat
+  // in the quiet zones up to 0.1 mm off, with no neighbours to outvote them (docs/detect.md).
+  double mask_clearance_per_size = 0;
   int octave_layers = 3;            // Lowe's s: scales sampled per octave
   double contrast_threshold = 0.04; // OpenCV's default; OpenCV divides it by s (Lowe's 0.03 is 0.09)
   double edge_threshold = 10;       // Lowe's r: principal-curvature ratio limit
@@ -44,7 +51,7 @@ void validate(const SiftOptions& options);
 std::vector<std::size_t> spread_order(const std::vector<cv::KeyPoint>& keypoints, int cell_px);
 
 // SIFT on one grey image (CV_8UC1). `mask` (CV_8UC1, same size, or empty): keypoints only where
-// it is non-zero. Keypoints sorted by decreasing response; descriptors as OpenCV's CV_8U SIFT.
+// it is non-zero (and, with mask_clearance_per_size, clear of its zeros by that much). Keypoints sorted by decreasing response; descriptors as OpenCV's CV_8U SIFT.
 FeatureSet detect_sift(const cv::Mat& grey, const std::string& image_name, const SiftOptions& options,
                        const cv::Mat& mask = cv::Mat());
 

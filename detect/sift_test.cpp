@@ -138,6 +138,47 @@ TEST(Sift, MaskedMarkersGetNoFeatures) {
   }
 }
 
+// With a clearance, no kept keypoint's neighbourhood (clearance x size) reaches the mask's blanks,
+// and the keypoints far from them are the ones OpenCV's position-only mask keeps; parameterized
+// over the cap (none, by strength, spread over cells): each path applies it.
+class SiftClearance : public ::testing::TestWithParam<std::pair<int, int>> {};
+
+TEST_P(SiftClearance, NoFeatureReachesTheMask) {
+  const cv::Mat img = texture(9);
+  const std::vector<std::array<Eigen::Vector2d, 4>> markers{
+      {Eigen::Vector2d(100, 100), {220, 110}, {210, 230}, {95, 215}},
+      {Eigen::Vector2d(400, 300), {480, 300}, {480, 380}, {400, 380}}};
+  const cv::Mat mask = marker_mask(img.size(), markers, 6, 1);
+  cv::Mat clear_px;
+  cv::distanceTransform(mask, clear_px, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  const auto clearance = [&](const Keypoint& k) {
+    return clear_px.at<float>(static_cast<int>(std::lround(k.y_px)), static_cast<int>(std::lround(k.x_px)));
+  };
+  SiftOptions o;
+  o.max_features = 0;
+  const FeatureSet plain = detect_sift(img, "t", o, mask);  // all of them, position-only mask
+  o.max_features = GetParam().first;
+  o.cap_cell_px = GetParam().second;
+  o.mask_clearance_per_size = 1;
+  const FeatureSet cleared = detect_sift(img, "t", o, mask);
+  ASSERT_GT(cleared.keypoints.size(), 50u);
+  EXPECT_EQ(cleared.descriptors.size(), cleared.keypoints.size() * 128);
+  std::size_t near = 0;
+  for (const auto& k : plain.keypoints) near += clearance(k) < k.size_px;
+  EXPECT_GT(near, 5u) << "the texture should put some keypoints beside the markers";
+  // 0.5 px for the quarter-pixel shift and the rounding of the position.
+  for (const auto& k : cleared.keypoints) EXPECT_GE(clearance(k) + 0.75, k.size_px) << k.x_px << " " << k.y_px;
+  if (o.max_features == 0) {  // no cap: exactly the plain set without the near ones
+    std::size_t far = 0;
+    for (const auto& k : plain.keypoints) far += clearance(k) >= k.size_px + 0.75;
+    EXPECT_GE(cleared.keypoints.size(), far);
+    EXPECT_LE(cleared.keypoints.size(), plain.keypoints.size() - near + 2);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Caps, SiftClearance,
+                         ::testing::Values(std::pair{0, 0}, std::pair{200, 0}, std::pair{200, 64}));
+
 TEST(Sift, FeatureSetsRoundTripThroughTheFileFormat) {
   const FeatureSet fs = detect_sift(texture(2), "dir/img.png", {});
   std::stringstream s;
@@ -158,6 +199,9 @@ TEST(Sift, OptionsAreChecked) {
   EXPECT_THROW(validate(o), UsageError);
   o = {};
   o.cap_cell_px = -1;
+  EXPECT_THROW(validate(o), UsageError);
+  o = {};
+  o.mask_clearance_per_size = -0.5;
   EXPECT_THROW(validate(o), UsageError);
 }
 
