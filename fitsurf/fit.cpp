@@ -401,9 +401,10 @@ std::vector<double> averaged_knots(std::vector<double> params, int num_poles, in
   return U;
 }
 
-FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptions& o,
-                      const std::vector<double>& point_weights) {
-  validate(o);
+namespace {
+
+FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& o,
+                  const std::vector<double>& point_weights) {
   if (!point_weights.empty() && point_weights.size() != points.size()) {
     throw UsageError("fit_surface: " + std::to_string(point_weights.size()) + " point weights for " +
                      std::to_string(points.size()) + " points");
@@ -559,8 +560,54 @@ FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptio
   } else {
     r.weight.assign(points.size(), 1.0);
   }
+  if (r.robust_applied) {
+    r.robust_poles_u = o.poles_u;
+    r.robust_poles_v = o.poles_v;
+  }
   r.surface = r.local_surface;
   for (auto& pole : r.surface.poles_mm) pole = r.frame.to_world(pole);
+  return r;
+}
+
+}  // namespace
+
+FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptions& o,
+                      const std::vector<double>& point_weights) {
+  validate(o);
+  const double n = static_cast<double>(points.size());
+  const double poles = static_cast<double>(o.poles_u) * o.poles_v;
+  if (o.robust == RobustLoss::None || !o.robust_on_coarser_net || n >= o.robust_min_redundancy * poles) {
+    return fit_net(points, o, point_weights);
+  }
+  // The net lacks the redundancy to judge outliers (FitOptions::robust_on_coarser_net): both pole
+  // counts scaled by sqrt(n / (redundancy * poles)) give the finest net of the same aspect that has it.
+  const double f = std::sqrt(n / (o.robust_min_redundancy * poles));
+  FitOptions coarse = o;
+  coarse.poles_u = std::max(o.degree_u + 1, static_cast<int>(std::floor(f * o.poles_u)));
+  coarse.poles_v = std::max(o.degree_v + 1, static_cast<int>(std::floor(f * o.poles_v)));
+  if (static_cast<double>(coarse.poles_u) * coarse.poles_v * o.robust_min_redundancy > n) {
+    return fit_net(points, o, point_weights);  // too few points for any net: no reweighting (fit_net says so)
+  }
+  log::debug("robust weights judged on a " + std::to_string(coarse.poles_u) + "x" + std::to_string(coarse.poles_v) +
+             " net (" + sig(n / poles, 3) + " points per pole of the " + std::to_string(o.poles_u) + "x" +
+             std::to_string(o.poles_v) + " net, fewer than " + sig(o.robust_min_redundancy) + ")");
+  const FitResult judged = fit_net(points, coarse, point_weights);
+  std::vector<double> w = judged.weight;
+  if (!point_weights.empty()) {
+    for (std::size_t k = 0; k < w.size(); ++k) w[k] *= point_weights[k];
+  }
+  FitOptions fixed = o;
+  fixed.robust = RobustLoss::None;
+  FitResult r = fit_net(points, fixed, w);
+  r.weight = judged.weight;
+  r.outlier = judged.outlier;
+  r.robust_applied = judged.robust_applied;
+  r.robust_scale_mm = judged.robust_scale_mm;
+  r.robust_cutoff_mm = judged.robust_cutoff_mm;
+  r.outliers = judged.outliers;
+  r.gross_outliers = judged.gross_outliers;
+  r.robust_poles_u = judged.robust_poles_u;
+  r.robust_poles_v = judged.robust_poles_v;
   return r;
 }
 

@@ -94,6 +94,12 @@ struct FitOptions {
   // exact data do not lose the points where the net cannot follow the shape (reject: 0.1 mm).
   double robust_min_scale_mm = 0.02;
   double robust_min_redundancy = 3;   // reweight only with at least this many points per pole
+  // When the net has fewer points per pole than that, the robust weights come from a coarser net
+  // that has them (same aspect, the most poles allowed): with ~2 points per pole the fine fit
+  // follows an outlier nearly onto itself, so its residual does not show it, while on the coarser
+  // net it stands out from its neighbours. The fine net is then fitted with those weights fixed.
+  // false: no reweighting on such a net (the gross screening only).
+  bool robust_on_coarser_net = true;
   double weight_tolerance = 0.01;     // rounds go on while a robust weight changes by more than this
   // Gross outliers are screened before the first round (with reweighting on): a point whose
   // height above the parameter plane, against a coarse first fit (about gross_points_per_pole
@@ -129,6 +135,8 @@ struct FitResult {
   std::size_t outliers = 0;           // points whose local deviation |e_k| exceeds c_k
   std::size_t gross_outliers = 0;     // left out before the first round (FitOptions::gross_threshold)
   std::vector<std::uint8_t> outlier;  // per point: 1 if an outlier (empty without reweighting)
+  int robust_poles_u = 0;             // net the robust weights were judged on (0: none; the fit's own,
+  int robust_poles_v = 0;             // or a coarser one: FitOptions::robust_on_coarser_net)
 };
 
 // Fits the points (world mm). Throws GeometryError for degenerate input: too few points for the

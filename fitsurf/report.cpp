@@ -95,6 +95,12 @@ void write_report(std::ostream& out, const Result& r, const Options& o, const st
   j.field("robust_cutoff_mm", f.robust_cutoff_mm);
   j.field("outliers", f.outliers);
   j.field("gross_outliers", f.gross_outliers);
+  j.key("robust_net").begin_array();
+  if (f.robust_applied) {
+    j.value(f.robust_poles_u);
+    j.value(f.robust_poles_v);
+  }
+  j.end_array();
   j.end_object();
   j.key("residuals").begin_object();
   j.field("count", r.stats.count);
@@ -146,6 +152,10 @@ std::vector<std::string> summary(const Result& r, const Options& o) {
   if (f.robust_applied) {
     s += "; " + std::to_string(f.outliers) + " outlier" + (f.outliers == 1 ? "" : "s") + " beyond " +
          num(f.robust_cutoff_mm) + " mm (inlier RMS " + num(r.stats.inlier_rms_mm) + " mm)";
+    if (f.robust_poles_u != o.fit.poles_u || f.robust_poles_v != o.fit.poles_v) {
+      s += ", judged on a " + std::to_string(f.robust_poles_u) + "x" + std::to_string(f.robust_poles_v) +
+           " net (too few points per pole for the fit's own)";
+    }
   }
   if (f.gross_outliers > 0) {
     s += "; " + std::to_string(f.gross_outliers) + " gross outlier" + (f.gross_outliers == 1 ? "" : "s") +
