@@ -58,7 +58,7 @@ const std::map<std::string, Stage>& stages() {
       {"detect",
        {"detect",
         {"{set}/part_*.jpg", "--aruco", "DICT_4X4_100", "--features", "{work}/features", "--mask-markers",
-         "--sift-contrast-threshold", "0.01", "--max-features", "20000", "--cap-cell-px", "64", "-o",
+         "--mask-clearance-per-size", "1", "--sift-contrast-threshold", "0.01", "--max-features", "20000", "--cap-cell-px", "64", "-o",
          "{work}/observations.csv"},
         {}}},
       {"match-markers",
