@@ -28,6 +28,20 @@ void validate(const SiftOptions& o) {
   }
 }
 
+namespace {
+
+// The first max_features keypoints of spread_order(all, cap_cell_px).
+std::vector<cv::KeyPoint> spread_cap(const std::vector<cv::KeyPoint>& all, const SiftOptions& o) {
+  const std::vector<std::size_t> order = spread_order(all, o.cap_cell_px);
+  const std::size_t kept = std::min(order.size(), static_cast<std::size_t>(o.max_features));
+  std::vector<cv::KeyPoint> keypoints;
+  keypoints.reserve(kept);
+  for (std::size_t k = 0; k < kept; ++k) keypoints.push_back(all[order[k]]);
+  return keypoints;
+}
+
+}  // namespace
+
 FeatureSet detect_sift(const cv::Mat& grey, const std::string& image_name, const SiftOptions& o, const cv::Mat& mask) {
   CV_Assert(grey.type() == CV_8UC1);
   CV_Assert(mask.empty() || (mask.type() == CV_8UC1 && mask.size() == grey.size()));
@@ -39,27 +53,17 @@ FeatureSet detect_sift(const cv::Mat& grey, const std::string& image_name, const
     const auto sift = cv::SIFT::create(0, o.octave_layers, o.contrast_threshold, o.edge_threshold, o.sigma, CV_8U);
     std::vector<cv::KeyPoint> all;
     sift->detect(grey, all, mask);
-    // Euclidean distance of every allowed pixel to the nearest blanked one (Borgefors' 5x5 mask
-    // approximation, within a few hundredths of a pixel).
+    // Exact Euclidean distance of every allowed pixel to the nearest blanked one (OpenCV's
+    // DIST_MASK_PRECISE: Felzenszwalb & Huttenlocher 2012, "Distance transforms of sampled functions").
     cv::Mat clear_px;
-    cv::distanceTransform(mask, clear_px, cv::DIST_L2, cv::DIST_MASK_5);
+    cv::distanceTransform(mask, clear_px, cv::DIST_L2, cv::DIST_MASK_PRECISE);
     std::erase_if(all, [&](const cv::KeyPoint& k) {
       const int x = std::clamp(static_cast<int>(std::lround(k.pt.x)), 0, clear_px.cols - 1);
       const int y = std::clamp(static_cast<int>(std::lround(k.pt.y)), 0, clear_px.rows - 1);
       return clear_px.at<float>(y, x) < o.mask_clearance_per_size * k.size;
     });
-    if (o.max_features > 0) {
-      if (o.cap_cell_px > 0) {
-        const std::vector<std::size_t> order = spread_order(all, o.cap_cell_px);
-        const std::size_t kept = std::min(order.size(), static_cast<std::size_t>(o.max_features));
-        for (std::size_t k = 0; k < kept; ++k) keypoints.push_back(all[order[k]]);
-      } else {
-        cv::KeyPointsFilter::retainBest(all, o.max_features);
-        keypoints = std::move(all);
-      }
-    } else {
-      keypoints = std::move(all);
-    }
+    if (o.max_features > 0 && o.cap_cell_px == 0) cv::KeyPointsFilter::retainBest(all, o.max_features);
+    keypoints = o.max_features > 0 && o.cap_cell_px > 0 ? spread_cap(all, o) : std::move(all);
     sift->compute(grey, keypoints, descriptors);
   } else if (o.cap_cell_px == 0 || o.max_features == 0) {
     // OpenCV keeps the `max_features` best by response itself (KeyPointsFilter::retainBest).
@@ -71,10 +75,7 @@ FeatureSet detect_sift(const cv::Mat& grey, const std::string& image_name, const
     const auto sift = cv::SIFT::create(0, o.octave_layers, o.contrast_threshold, o.edge_threshold, o.sigma, CV_8U);
     std::vector<cv::KeyPoint> all;
     sift->detect(grey, all, mask);
-    const std::vector<std::size_t> order = spread_order(all, o.cap_cell_px);
-    const std::size_t kept = std::min(order.size(), static_cast<std::size_t>(o.max_features));
-    keypoints.reserve(kept);
-    for (std::size_t k = 0; k < kept; ++k) keypoints.push_back(all[order[k]]);
+    keypoints = spread_cap(all, o);
     sift->compute(grey, keypoints, descriptors);
   }
   FeatureSet fs;
