@@ -262,10 +262,11 @@ int main(int argc, char** argv) {
   }
   if (want("sparse")) {
   // Sparse marker-like points: a jittered grid (15x10: 10 mm apart; 30x20: 5 mm), noise
-  // 0.01 mm, the default smoothing or --noise-mm 0.01, each with smoothing order 2 (thin plate)
-  // and 3; deviation and curvature inside the points' hull.
-  std::printf("\n%5s %-8s %6s %-16s %9s %10s %10s %9s %9s %6s %9s\n", "order", "shape", "points", "smoothing", "lambda", "truth RMS",
-              "truth max", "max curv", "true curv", "ratio", "TPS max");
+  // 0.01 mm; the spline alone (--prefit none) with the default smoothing or --noise-mm 0.01, each
+  // with smoothing order 2 (thin plate) and 3, and the kernel prefit (--prefit kernel, which is
+  // fitsurf's default for the 150 points); deviation and curvature inside the points' hull.
+  std::printf("\n%-6s %5s %-8s %6s %-16s %9s %10s %10s %9s %9s %6s %9s %s\n", "prefit", "order", "shape", "points", "smoothing",
+              "lambda", "truth RMS", "truth max", "max curv", "true curv", "ratio", "TPS max", "kernel (LOO RMS mm), s");
   for (const auto& s : test::shapes()) {
     for (int nx : {15, 30}) {
       const PointCloud cloud = cloud_of(test::sample_grid(s, nx, nx * 2 / 3, 45.0 / nx, 0.01, 4));
@@ -273,9 +274,13 @@ int main(int argc, char** argv) {
       // so no fit can be within half of its distance from the truth of both it and the truth: the
       // information limit.
       const auto tps = test::thin_plate_interpolant(cloud.points_mm);
+      for (Prefit prefit : {Prefit::None, Prefit::Kernel}) {
       for (int order : {2, 3}) {
         for (double noise : {0.0, 0.01}) {
+          // The kernel shapes the surface, not the order; it interpolates (no --noise-mm).
+          if (prefit == Prefit::Kernel && (order == 3 || noise > 0)) continue;
           Options o;
+          o.prefit.mode = prefit;
           o.fit.threads = threads;
           o.fit.smoothing_order = order;
           o.fit.noise_mm = noise;
@@ -294,10 +299,20 @@ int main(int argc, char** argv) {
               tps_max = std::max(tps_max, test::distance_to_truth(s, Eigen::Vector3d(x.x(), x.y(), tps(x.x(), x.y()))));
             }
           }
-          std::printf("%5d %-8s %6zu %-16s %9.3g %10.5f %10.5f %9.5f %9.5f %6.2f %9.5f\n", order, s.name.c_str(), cloud.points_mm.size(),
+          std::string kernel = "-";
+          if (r.prefit) {
+            char buf[96];
+            std::snprintf(buf, sizeof buf, "%s %.3g mm t%d (%.4f)", to_string(r.prefit->model.shape).c_str(),
+                          r.prefit->model.length_mm, r.prefit->model.trend_degree, r.prefit->loo_rms_mm);
+            kernel = buf;
+          }
+          std::printf("%-6s %5d %-8s %6zu %-16s %9.3g %10.5f %10.5f %9.5f %9.5f %6.2f %9.5f %s %.2f\n",
+                      prefit == Prefit::Kernel ? "kernel" : "none", order, s.name.c_str(), cloud.points_mm.size(),
                       noise > 0 ? "--noise-mm 0.01" : "default", r.fit.smoothing_mm4, dev.rms_mm, dev.max_mm,
-                      dev.max_curvature, dev.true_max_curvature, dev.max_curvature / dev.true_max_curvature, tps_max);
+                      dev.max_curvature, dev.true_max_curvature, dev.max_curvature / dev.true_max_curvature, tps_max,
+                      kernel.c_str(), r.seconds);
         }
+      }
       }
     }
   }

@@ -71,6 +71,11 @@ void add_options(CLI::App& app, Cli& c) {
                  "Noise of the points (standard deviation, mm): choose the smoothing so the residuals match it "
                  "(Reinsch), instead of --smoothing; for sparse noisy points such as markers")
       ->group(srf);
+  app.add_option("--prefit", c.prefit,
+                 "Sparse points: first interpolate them by the radial kernel (Gaussian, Matern 5/2, polyharmonic "
+                 "3-5, with its length) that predicts each point best from the others (leave-one-out), then fit "
+                 "the net to it; auto: when there are at most 400 points and fewer than the net's poles")
+      ->capture_default_str()->check(CLI::IsMember({"auto", "kernel", "none"}))->group(srf);
   app.add_option("--outline", c.outline,
                  "Data outline written with the surface: concave (grid), convex (hull), auto (concave from 2000 "
                  "points), none")
@@ -148,6 +153,7 @@ Options to_options(const Cli& c) {
                  : c.robust == "tukey" ? RobustLoss::Tukey
                                        : RobustLoss::Reject;
   o.fit.parameter_correction = !c.no_correction;
+  o.prefit.mode = c.prefit == "kernel" ? Prefit::Kernel : c.prefit == "none" ? Prefit::None : Prefit::Auto;
   o.outline.method = c.outline == "concave" ? OutlineMethod::Concave
                      : c.outline == "convex" ? OutlineMethod::Convex
                      : c.outline == "none"   ? OutlineMethod::None

@@ -22,6 +22,7 @@ struct Cli {
   double mesh_step_mm = 1.0;
   std::string net = "30x30";
   std::string knots = "uniform", plane = "pca", solver = "ldlt", robust = "reject", outline = "auto";
+  std::string prefit = "auto";
   bool no_correction = false;
   std::vector<double> keep_box, keep_above;
   double tolerance_mm = 0;       // 0: fixed net

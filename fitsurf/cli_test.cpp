@@ -64,6 +64,7 @@ std::vector<CliCase> golden_cases() {
   for (int k = 0; k < 100; ++k) collinear += std::to_string(k) + " " + std::to_string(2 * k) + " 30\n";
   for (int k = 0; k < 400; ++k) flat += std::to_string(k % 20) + " " + std::to_string(k / 20) + " 0\n";
   const std::string dome = dome_points(3000);
+  const std::string markers = xyz_text(fitsurf::test::sample_grid(fitsurf::test::shape("dome"), 15, 10, 3.0, 0.01, 43));
   return {
       {"missing_input", {"no-such-cloud.xyz"}, "", 1, "", "no-such-cloud.xyz"},
       {"short_line", {"-"}, "1 2 3\n4 5\n", 1, "", "<stdin>:2:"},
@@ -86,6 +87,10 @@ std::vector<CliCase> golden_cases() {
       {"fits_order_3", {"--smoothing-order", "3", "--smoothing", "2"}, dome, 0, "photomill-surface v1", "smoothing 2 mm^6 (order 3)"},
       {"fits_with_options", {"-", "--net", "12x9", "--knots", "averaged", "--robust", "huber", "--solver", "cg"}, dome, 0,
        "poles 12 9", "12x9 poles"},
+      {"sparse_gets_the_kernel", {}, markers, 0, "photomill-surface v1", "kernel prefit (150 points, fewer than the net's poles)"},
+      {"sparse_spline_only", {"--prefit", "none"}, markers, 0, "photomill-surface v1", "residuals: RMS"},
+      {"bad_prefit", {"--prefit", "rbf"}, markers, 2, "", "--prefit"},
+      {"kernel_with_tolerance", {"--prefit", "kernel", "--tolerance", "0.05"}, markers, 2, "", "--prefit kernel and --tolerance"},
       {"tolerance_met", {"--tolerance", "0.05", "--tolerance-stat", "p95"}, dome, 0, "photomill-surface v1", "tolerance 0.05 mm (p95) met"},
   };
 }

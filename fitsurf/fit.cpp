@@ -401,6 +401,15 @@ std::vector<double> averaged_knots(std::vector<double> params, int num_poles, in
   return U;
 }
 
+void require_points(std::size_t n, const FitOptions& o) {
+  const int p = o.degree_u, q = o.degree_v;
+  const std::size_t needed = static_cast<std::size_t>((p + 1) * (q + 1));
+  if (n < needed) {
+    throw GeometryError(std::to_string(n) + " points are too few for a degree " + std::to_string(p) + "x" +
+                        std::to_string(q) + " surface: at least " + std::to_string(needed) + " are needed");
+  }
+}
+
 namespace {
 
 FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& o,
@@ -409,12 +418,8 @@ FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& 
     throw UsageError("fit_surface: " + std::to_string(point_weights.size()) + " point weights for " +
                      std::to_string(points.size()) + " points");
   }
+  require_points(points.size(), o);
   const int p = o.degree_u, q = o.degree_v;
-  const std::size_t needed = static_cast<std::size_t>((p + 1) * (q + 1));
-  if (points.size() < needed) {
-    throw GeometryError(std::to_string(points.size()) + " points are too few for a degree " + std::to_string(p) + "x" +
-                        std::to_string(q) + " surface: at least " + std::to_string(needed) + " are needed");
-  }
   FitResult r;
   r.frame = parameter_frame(points, o.plane, o.frame);
   if (is_flat(r.frame, o.frame)) log::info("the points are flat (a plane fits them): the surface will be a plane");

@@ -147,6 +147,9 @@ struct FitResult {
 FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptions& options,
                       const std::vector<double>& point_weights = {});
 
+// At least (p + 1)(q + 1) points for degrees p x q, else GeometryError saying so.
+void require_points(std::size_t n, const FitOptions& options);
+
 // The surface folds over the parameter plane inside `boundary_uv` (or the whole domain when it
 // is empty)? Throws GeometryError naming the place. Part of fit_point_cloud, after the outline.
 void check_no_fold(const FitResult& fit, const std::vector<Eigen::Vector2d>& boundary_uv, const FoldOptions& options);

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <type_traits>
 
 #include "fitsurf/numbers.hpp"
 #include "formats/error.hpp"
@@ -76,6 +77,146 @@ std::vector<double> sigma_weights(const PointCloud& cloud, const std::vector<std
   return w;
 }
 
+double median_abs(std::vector<double> v) {
+  for (double& x : v) x = std::abs(x);
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+// The kernel prefit (PrefitOptions): heights over the points' parameter plane interpolated by
+// the kernel that predicts each point best from the others, outliers by that prediction left
+// out, the interpolant sampled on a grid inside the points' hull, the B-spline fitted to the
+// samples; then the points' own foot points, residuals and weights on that surface, so the
+// outline, report and residual cloud describe the points, not the samples.
+FitResult kernel_prefit_fit(const std::vector<Eigen::Vector3d>& points, const FitOptions& fit_options,
+                            const PrefitOptions& po, PrefitSummary& summary) {
+  require_points(points.size(), fit_options);  // the same minimum as without the prefit
+  const PlaneFrame frame = parameter_frame(points, fit_options.plane, fit_options.frame);
+  std::vector<Eigen::Vector2d> xy(points.size());
+  std::vector<double> z(points.size());
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    const Eigen::Vector3d l = frame.to_local(points[k]);
+    xy[k] = l.head<2>();
+    z[k] = l.z();
+  }
+  KernelOptions ko = po.kernel;
+  if (ko.threads == 0) ko.threads = fit_options.threads;
+  // Outliers: the worst leave-one-out residual beyond the cutoff is left out, the kernel chosen
+  // again, until none is (an outlier spoils its neighbours' predictions, so one at a time).
+  std::vector<std::size_t> kept(points.size());
+  for (std::size_t k = 0; k < kept.size(); ++k) kept[k] = k;
+  std::vector<std::uint8_t> outlier(points.size(), 0);
+  auto subset = [&](const auto& all) {
+    std::remove_cvref_t<decltype(all)> out;
+    out.reserve(kept.size());
+    for (std::size_t k : kept) out.push_back(all[k]);
+    return out;
+  };
+  KernelInterpolant kernel = fit_kernel(subset(xy), subset(z), ko);
+  const bool screen = fit_options.robust != RobustLoss::None;
+  double cutoff = 0;
+  while (screen) {
+    const auto& e = kernel.loo_residual_mm();
+    const double scale = std::max(1.4826 * median_abs(e), fit_options.robust_min_scale_mm);
+    cutoff = po.outlier_threshold * scale;
+    std::size_t worst = 0;
+    for (std::size_t i = 1; i < e.size(); ++i) {
+      if (std::abs(e[i]) > std::abs(e[worst])) worst = i;
+    }
+    if (!(std::abs(e[worst]) > cutoff) || kept.size() <= 4) break;
+    outlier[kept[worst]] = 1;
+    kept.erase(kept.begin() + static_cast<std::ptrdiff_t>(worst));
+    kernel = fit_kernel(subset(xy), subset(z), ko);
+  }
+
+  // Samples: a grid of po.samples_per_span per knot span of the net in each direction over the
+  // kept points' box, inside their convex hull grown by one (the longer) grid step.
+  const std::vector<Eigen::Vector2d> kept_xy = subset(xy);
+  const std::vector<Eigen::Vector2d> hull = convex_hull(kept_xy);
+  Eigen::Vector2d lo = kept_xy.front(), hi = kept_xy.front();
+  for (const auto& p : kept_xy) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const Eigen::Vector2d extent = hi - lo;
+  const double spans_u = std::max(1, fit_options.poles_u - fit_options.degree_u);
+  const double spans_v = std::max(1, fit_options.poles_v - fit_options.degree_v);
+  const int nu = static_cast<int>(std::ceil(spans_u * po.samples_per_span));
+  const int nv = static_cast<int>(std::ceil(spans_v * po.samples_per_span));
+  const double step = std::max(extent.x() / nu, extent.y() / nv);
+  if (!(extent.minCoeff() > 0)) throw GeometryError("the kernel prefit's points span no area in their plane");
+  auto near_hull = [&](const Eigen::Vector2d& x) {
+    if (hull.size() >= 3 && point_in_polygon(hull, x)) return true;
+    for (std::size_t i = 0; i < hull.size(); ++i) {
+      const Eigen::Vector2d a = hull[i], b = hull[(i + 1) % hull.size()];
+      const double t = std::clamp((x - a).dot(b - a) / std::max((b - a).squaredNorm(), 1e-300), 0.0, 1.0);
+      if ((a + t * (b - a) - x).norm() <= step) return true;
+    }
+    return false;
+  };
+  std::vector<Eigen::Vector3d> samples;
+  for (int i = 0; i <= nu; ++i) {
+    for (int j = 0; j <= nv; ++j) {
+      const Eigen::Vector2d x = lo + Eigen::Vector2d(extent.x() * i / nu, extent.y() * j / nv);
+      if (near_hull(x)) samples.push_back(frame.to_world(Eigen::Vector3d(x.x(), x.y(), kernel(x))));
+    }
+  }
+  FitOptions so = fit_options;
+  so.robust = RobustLoss::None;  // the samples are exact: the kernel's screening took the outliers
+  FitResult fit = fit_surface(samples, so);
+
+  // The points' own foot points and residuals on the surface.
+  std::vector<Eigen::Vector2d> uv(points.size());
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    uv[k] = fit.box.to_uv(fit.frame.to_local(points[k])).cwiseMax(0.0).cwiseMin(1.0);
+  }
+  std::vector<double> d;
+  project_points(fit.surface, points, uv, d, fit_options.projection, fit_options.threads);
+  fit.uv = std::move(uv);
+  fit.residual_mm = std::move(d);
+  fit.weight.assign(points.size(), 1.0);
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    if (outlier[k]) fit.weight[k] = 0;
+  }
+  fit.robust_applied = screen;
+  fit.outliers = points.size() - kept.size();
+  fit.outlier = screen ? outlier : std::vector<std::uint8_t>{};
+  fit.robust_cutoff_mm = cutoff;
+  fit.robust_scale_mm = screen ? cutoff / po.outlier_threshold : 0;
+  fit.robust_poles_u = fit.robust_poles_v = 0;
+  fit.gross_outliers = 0;
+
+  summary.model = kernel.model();
+  summary.loo_rms_mm = kernel.loo_rms_mm();
+  summary.candidates = kernel.candidates().size();
+  summary.samples = samples.size();
+  summary.outliers = fit.outliers;
+  summary.outlier_cutoff_mm = cutoff;
+  return fit;
+}
+
+bool use_kernel_prefit(const Options& o, std::size_t points, const FitOptions& fit) {
+  const bool noisy = o.weight_by_sigma || fit.noise_mm > 0;
+  switch (o.prefit.mode) {
+    case Prefit::None: return false;
+    case Prefit::Kernel:
+      if (o.tolerance) {
+        throw UsageError("--prefit kernel and --tolerance exclude each other (the net would be chosen for the kernel's "
+                         "samples, not the points)");
+      }
+      if (noisy) {
+        throw UsageError("--prefit kernel interpolates the points: --noise-mm and --weight-by-sigma smooth them with "
+                         "--prefit none");
+      }
+      return true;
+    case Prefit::Auto:
+      return !o.tolerance && !noisy && points <= o.prefit.auto_max_points &&
+             points < static_cast<std::size_t>(fit.poles_u) * static_cast<std::size_t>(fit.poles_v);
+  }
+  return false;
+}
+
 }  // namespace
 
 Result fit_point_cloud(const PointCloud& cloud, const Options& options, const std::string& source) {
@@ -94,12 +235,21 @@ Result fit_point_cloud(const PointCloud& cloud, const Options& options, const st
   std::vector<double> weights;
   if (options.weight_by_sigma) weights = sigma_weights(cloud, r.selection.kept, options.sigma_floor_mm, source);
   FitOptions fit_options = options.fit;
-  if (options.tolerance) {
-    r.tolerance = choose_net(points, options.fit, *options.tolerance);
-    fit_options.poles_u = r.tolerance->poles_u;
-    fit_options.poles_v = r.tolerance->poles_v;
+  validate(fit_options);
+  if (!(options.prefit.samples_per_span > 0) || !(options.prefit.outlier_threshold > 0)) {
+    throw UsageError("the prefit's samples per span and outlier threshold must be positive");
   }
-  r.fit = fit_surface(points, fit_options, weights);
+  if (use_kernel_prefit(options, points.size(), fit_options)) {
+    r.prefit.emplace();
+    r.fit = kernel_prefit_fit(points, fit_options, options.prefit, *r.prefit);
+  } else {
+    if (options.tolerance) {
+      r.tolerance = choose_net(points, options.fit, *options.tolerance);
+      fit_options.poles_u = r.tolerance->poles_u;
+      fit_options.poles_v = r.tolerance->poles_v;
+    }
+    r.fit = fit_surface(points, fit_options, weights);
+  }
   r.fit.surface.boundary_uv = data_outline(r.fit.uv, r.fit.weight, r.fit.box.length_u_mm(),
                                            r.fit.box.length_v_mm(), options.outline);
   r.fit.local_surface.boundary_uv = r.fit.surface.boundary_uv;

@@ -84,6 +84,27 @@ void write_report(std::ostream& out, const Result& r, const Options& o, const st
   } else {
     j.null();
   }
+  j.key("prefit");
+  if (r.prefit) {
+    const PrefitSummary& k = *r.prefit;
+    j.begin_object();
+    j.field("kernel", to_string(k.model.shape));
+    j.key("length_mm");
+    if (k.model.length_mm > 0) {
+      j.value(k.model.length_mm);
+    } else {
+      j.null();
+    }
+    j.field("trend_degree", k.model.trend_degree);
+    j.field("loo_rms_mm", k.loo_rms_mm);
+    j.field("candidates", k.candidates);
+    j.field("samples", k.samples);
+    j.field("outliers", k.outliers);
+    j.field("outlier_cutoff_mm", k.outlier_cutoff_mm);
+    j.end_object();
+  } else {
+    j.null();
+  }
   j.field("solver", to_string(o.fit.solver));
   j.field("parameter_correction", o.fit.parameter_correction);
   j.key("round_rms_mm").begin_array();
@@ -96,7 +117,7 @@ void write_report(std::ostream& out, const Result& r, const Options& o, const st
   j.field("outliers", f.outliers);
   j.field("gross_outliers", f.gross_outliers);
   j.key("robust_net").begin_array();
-  if (f.robust_applied) {
+  if (f.robust_applied && f.robust_poles_u > 0) {  // empty: not judged on a net (none, or the kernel prefit)
     j.value(f.robust_poles_u);
     j.value(f.robust_poles_v);
   }
@@ -147,12 +168,22 @@ std::vector<std::string> summary(const Result& r, const Options& o) {
        (o.weight_by_sigma ? ", points weighted by 1/sigma^2" : "") + ", " + std::to_string(f.round_rms_mm.size()) + " round" +
        (f.round_rms_mm.size() == 1 ? "" : "s") + ", " + sig(r.seconds, 3) + " s";
   std::vector<std::string> lines{s};
+  if (r.prefit) {
+    const PrefitSummary& k = *r.prefit;
+    lines.push_back("kernel prefit (" + std::to_string(r.selection.kept.size()) + " points" +
+                    (o.prefit.mode == Prefit::Kernel ? ", --prefit kernel" : ", fewer than the net's poles") + "): " +
+                    to_string(k.model) + ", chosen of " + std::to_string(k.candidates) + " by leave-one-out RMS " + num(k.loo_rms_mm) +
+                    " mm (the error to expect between points); the net fitted to " + std::to_string(k.samples) +
+                    " samples of it");
+  }
   s = "residuals: RMS " + num(r.stats.rms_mm) + " mm, max " + num(r.stats.max_abs_mm) + " mm, p50 " +
        num(r.stats.p50_mm) + ", p95 " + num(r.stats.p95_mm) + ", p99 " + num(r.stats.p99_mm) + " mm";
   if (f.robust_applied) {
     s += "; " + std::to_string(f.outliers) + " outlier" + (f.outliers == 1 ? "" : "s") + " beyond " +
          num(f.robust_cutoff_mm) + " mm (inlier RMS " + num(r.stats.inlier_rms_mm) + " mm)";
-    if (f.robust_poles_u != o.fit.poles_u || f.robust_poles_v != o.fit.poles_v) {
+    if (r.prefit) {
+      s += ", judged by their leave-one-out residuals in the kernel prefit";
+    } else if (f.robust_poles_u != o.fit.poles_u || f.robust_poles_v != o.fit.poles_v) {
       s += ", judged on a " + std::to_string(f.robust_poles_u) + "x" + std::to_string(f.robust_poles_v) +
            " net (too few points per pole for the fit's own)";
     }
