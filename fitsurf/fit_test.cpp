@@ -302,7 +302,9 @@ INSTANTIATE_TEST_SUITE_P(Shapes, SparseKernel,
 
 // Where 150 markers do not reach 0.1 mm with any of the fits (the ridge's 74-degree sides, the
 // demo part's 4 mm shoulders between markers 10 mm apart): the kernel prefit is still free of
-// wiggles and closer to the truth than the spline's own smoothing of either order.
+// wiggles and closer to the truth over the points' hull than the spline's own smoothing of either
+// order. (Not inside the demo part's blend, where its short length ripples between the markers:
+// docs/fitsurf.md has the figures.)
 class SparseKernelBeyond : public FitsurfFit, public ::testing::WithParamInterface<std::string> {};
 
 TEST_P(SparseKernelBeyond, CloserThanTheSplineAlone) {
