@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <type_traits>
 
 #include "fitsurf/numbers.hpp"
@@ -117,14 +118,24 @@ FitResult kernel_prefit_fit(const std::vector<Eigen::Vector3d>& points, const Fi
   const bool screen = fit_options.robust != RobustLoss::None;
   double cutoff = 0;
   while (screen) {
+    // Judged by the standardised residuals t_k (kernel.hpp), against their robust scale
+    // s = 1.4826 MAD(t): in mm, point k's scale is s |e_k| / |t_k|, at least robust_min_scale_mm.
     const auto& e = kernel.loo_residual_mm();
-    const double scale = std::max(1.4826 * median_abs(e), fit_options.robust_min_scale_mm);
-    cutoff = po.outlier_threshold * scale;
-    std::size_t worst = 0;
-    for (std::size_t i = 1; i < e.size(); ++i) {
-      if (std::abs(e[i]) > std::abs(e[worst])) worst = i;
+    const auto& t = kernel.loo_standardised();
+    const double s_t = 1.4826 * median_abs(t);
+    const double floor_cut = po.outlier_threshold * fit_options.robust_min_scale_mm;
+    std::size_t worst = e.size();
+    cutoff = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < e.size(); ++i) {
+      if (t[i] == 0) continue;
+      cutoff = std::min(cutoff, std::max(po.outlier_threshold * s_t * std::abs(e[i] / t[i]), floor_cut));
+      if (std::abs(t[i]) > po.outlier_threshold * s_t && std::abs(e[i]) > floor_cut &&
+          (worst == e.size() || std::abs(t[i]) > std::abs(t[worst]))) {
+        worst = i;
+      }
     }
-    if (!(std::abs(e[worst]) > cutoff) || kept.size() <= 4) break;
+    if (!std::isfinite(cutoff)) cutoff = floor_cut;
+    if (worst == e.size() || kept.size() <= 4) break;
     outlier[kept[worst]] = 1;
     kept.erase(kept.begin() + static_cast<std::ptrdiff_t>(worst));
     kernel = fit_kernel(subset(xy), subset(z), ko);

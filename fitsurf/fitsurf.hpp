@@ -34,10 +34,11 @@ struct PrefitOptions {
   // Samples of the interpolant per knot span in each direction, on a grid covering the points'
   // convex hull grown by one grid step.
   double samples_per_span = 4;
-  // With robust reweighting on: a point whose leave-one-out residual exceeds this many robust
-  // standard deviations (1.4826 MAD of all of them, at least FitOptions::robust_min_scale_mm) is
-  // an outlier, left out one at a time (worst first) and the kernel chosen again. Generous, as a
-  // point on the hull's edge is extrapolated from one side and predicted worse than the rest.
+  // With robust reweighting on: a point whose standardised leave-one-out residual (each divided
+  // by its prediction's standard deviation, so a point on the hull's edge, extrapolated from one
+  // side, is not suspect for that alone) exceeds this many robust standard deviations (1.4826 MAD
+  // of all of them), and whose residual exceeds this many FitOptions::robust_min_scale_mm, is an
+  // outlier, left out one at a time (worst first) and the kernel chosen again.
   double outlier_threshold = 10;
   KernelOptions kernel;
 };

@@ -78,7 +78,7 @@ constexpr int kMaxTrendDegree = 4;  // polyharmonic 5; monomials() writes at mos
 struct Solved {
   bool ok = false;
   Eigen::VectorXd coef;
-  std::vector<double> loo;
+  std::vector<double> loo, loo_standardised;
   double loo_rms = std::numeric_limits<double>::infinity();
 };
 
@@ -113,6 +113,7 @@ Solved solve(const std::vector<Eigen::Vector2d>& x, const std::vector<double>& z
   Eigen::VectorXd c = inv * b;
   if (!inv.allFinite() || !c.allFinite()) return s;
   s.loo.resize(static_cast<std::size_t>(n));
+  s.loo_standardised.resize(static_cast<std::size_t>(n));
   double sum2 = 0;
   for (int i = 0; i < n; ++i) {
     // (A^-1)_kk is positive for a positive definite kernel; for a polyharmonic one its sign is
@@ -122,6 +123,10 @@ Solved solve(const std::vector<Eigen::Vector2d>& x, const std::vector<double>& z
     if (!(std::abs(d) > 0)) return s;
     const double e = c(i) / d;
     s.loo[static_cast<std::size_t>(i)] = e;
+    // The prediction's variance is proportional to 1 / |(A^-1)_kk| (kriging variance; Dubrule
+    // 1983, "Cross validation of kriging in a unique neighborhood", Math. Geol. 15): a point on
+    // the hull's edge, extrapolated from one side, is predicted less surely than one inside.
+    s.loo_standardised[static_cast<std::size_t>(i)] = e * std::sqrt(std::abs(d));
     sum2 += e * e;
   }
   s.loo_rms = std::sqrt(sum2 / n);
@@ -206,6 +211,7 @@ KernelInterpolant fit_kernel_model(const std::vector<Eigen::Vector2d>& xy_mm, co
   k.model_ = m;
   k.loo_rms_mm_ = s.loo_rms;
   k.loo_ = std::move(s.loo);
+  k.loo_standardised_ = std::move(s.loo_standardised);
   k.candidates_ = {{m, k.loo_rms_mm_}};
   k.centre_mm_ = p.centre;
   k.scale_mm_ = p.scale;

@@ -67,6 +67,10 @@ public:
   double loo_rms_mm() const { return loo_rms_mm_; }
   // z_k - f^(-k)(x_k) of each point: the error predicting it from all the others.
   const std::vector<double>& loo_residual_mm() const { return loo_; }
+  // The same divided by its prediction's standard deviation up to a common factor, e_k
+  // sqrt(|(A^-1)_kk|) (the kriging variance of predicting x_k from the others is proportional to
+  // 1 / |(A^-1)_kk|): comparable between a point amid others and one on the hull's edge.
+  const std::vector<double>& loo_standardised() const { return loo_standardised_; }
   // Every candidate tried, in the order tried (for the report and the tests).
   const std::vector<KernelCandidate>& candidates() const { return candidates_; }
   double operator()(const Eigen::Vector2d& xy_mm) const;
@@ -78,7 +82,7 @@ private:
                                             const KernelModel&, const KernelOptions&);
   KernelModel model_;
   double loo_rms_mm_ = 0;
-  std::vector<double> loo_;
+  std::vector<double> loo_, loo_standardised_;
   std::vector<KernelCandidate> candidates_;
   Eigen::Vector2d centre_mm_ = Eigen::Vector2d::Zero();
   double scale_mm_ = 1;  // coordinates are (x - centre) / scale inside
