@@ -72,9 +72,10 @@ void add_options(CLI::App& app, Cli& c) {
                  "(Reinsch), instead of --smoothing; for sparse noisy points such as markers")
       ->group(srf);
   app.add_option("--prefit", c.prefit,
-                 "Sparse points: first interpolate them by the radial kernel (Gaussian, Matern 5/2, polyharmonic "
-                 "3-5, with its length) that predicts each point best from the others (leave-one-out), then fit "
-                 "the net to it; auto: when there are at most 400 points and fewer than the net's poles")
+                 "Sparse points: first interpolate them by the radial kernel (Gaussian, Matern 3/2, 5/2, 7/2 with "
+                 "their length and trend, or polyharmonic 3-5) that predicts each point best from the others "
+                 "(leave-one-out), then fit the net to it; auto: when there are at most 400 points, fewer than "
+                 "the net's poles, and no --tolerance, --noise-mm or --weight-by-sigma")
       ->capture_default_str()->check(CLI::IsMember({"auto", "kernel", "none"}))->group(srf);
   app.add_option("--outline", c.outline,
                  "Data outline written with the surface: concave (grid), convex (hull), auto (concave from 2000 "

@@ -9,6 +9,7 @@
 
 #include "fitsurf/numbers.hpp"
 #include "formats/error.hpp"
+#include "formats/log.hpp"
 
 namespace photomill::fitsurf {
 
@@ -103,8 +104,10 @@ FitResult kernel_prefit_fit(const std::vector<Eigen::Vector3d>& points, const Fi
   }
   KernelOptions ko = po.kernel;
   if (ko.threads == 0) ko.threads = fit_options.threads;
-  // Outliers: the worst leave-one-out residual beyond the cutoff is left out, the kernel chosen
-  // again, until none is (an outlier spoils its neighbours' predictions, so one at a time).
+  // Outliers: the worst leave-one-out residual beyond the cutoff is left out and the same kernel
+  // solved again, until none is (an outlier spoils its neighbours' predictions, so one at a
+  // time); then the kernel is chosen again and the points judged again, until a choice finds
+  // none; at most max_outlier_fraction of the points.
   std::vector<std::size_t> kept(points.size());
   for (std::size_t k = 0; k < kept.size(); ++k) kept[k] = k;
   std::vector<std::uint8_t> outlier(points.size(), 0);
@@ -117,9 +120,10 @@ FitResult kernel_prefit_fit(const std::vector<Eigen::Vector3d>& points, const Fi
   KernelInterpolant kernel = fit_kernel(subset(xy), subset(z), ko);
   const bool screen = fit_options.robust != RobustLoss::None;
   double cutoff = 0;
-  while (screen) {
-    // Judged by the standardised residuals t_k (kernel.hpp), against their robust scale
-    // s = 1.4826 MAD(t): in mm, point k's scale is s |e_k| / |t_k|, at least robust_min_scale_mm.
+  // Judged by the standardised residuals t_k (kernel.hpp), against their robust scale
+  // s = 1.4826 MAD(t): in mm, point k's scale is s |e_k| / |t_k|, at least robust_min_scale_mm.
+  // Returns the index (in kept) of the worst outlier, or kept.size() when there is none.
+  auto worst_outlier = [&] {
     const auto& e = kernel.loo_residual_mm();
     const auto& t = kernel.loo_standardised();
     const double s_t = 1.4826 * median_abs(t);
@@ -135,9 +139,24 @@ FitResult kernel_prefit_fit(const std::vector<Eigen::Vector3d>& points, const Fi
       }
     }
     if (!std::isfinite(cutoff)) cutoff = floor_cut;
-    if (worst == e.size() || kept.size() <= 4) break;
-    outlier[kept[worst]] = 1;
-    kept.erase(kept.begin() + static_cast<std::ptrdiff_t>(worst));
+    return worst;
+  };
+  bool capped = false;
+  while (screen && !capped) {
+    bool removed = false;
+    for (std::size_t worst = worst_outlier(); worst < kept.size(); worst = worst_outlier()) {
+      if (static_cast<double>(points.size() - kept.size() + 1) > po.max_outlier_fraction * static_cast<double>(points.size())) {
+        log::warn("kernel prefit: more than " + sig(100 * po.max_outlier_fraction, 3) +
+                  " % of the points look like outliers; the rest are kept");
+        capped = true;
+        break;
+      }
+      outlier[kept[worst]] = 1;
+      kept.erase(kept.begin() + static_cast<std::ptrdiff_t>(worst));
+      kernel = fit_kernel_model(subset(xy), subset(z), kernel.model(), ko);
+      removed = true;
+    }
+    if (!removed) break;
     kernel = fit_kernel(subset(xy), subset(z), ko);
   }
 
@@ -155,8 +174,8 @@ FitResult kernel_prefit_fit(const std::vector<Eigen::Vector3d>& points, const Fi
   const double spans_v = std::max(1, fit_options.poles_v - fit_options.degree_v);
   const int nu = static_cast<int>(std::ceil(spans_u * po.samples_per_span));
   const int nv = static_cast<int>(std::ceil(spans_v * po.samples_per_span));
-  const double step = std::max(extent.x() / nu, extent.y() / nv);
   if (!(extent.minCoeff() > 0)) throw GeometryError("the kernel prefit's points span no area in their plane");
+  const double step = std::max(extent.x() / nu, extent.y() / nv);
   auto near_hull = [&](const Eigen::Vector2d& x) {
     if (hull.size() >= 3 && point_in_polygon(hull, x)) return true;
     for (std::size_t i = 0; i < hull.size(); ++i) {

@@ -40,6 +40,7 @@ struct PrefitOptions {
   // of all of them), and whose residual exceeds this many FitOptions::robust_min_scale_mm, is an
   // outlier, left out one at a time (worst first) and the kernel chosen again.
   double outlier_threshold = 10;
+  double max_outlier_fraction = 0.2;  // left out at most (beyond it fitsurf warns and keeps the rest)
   KernelOptions kernel;
 };
 
