@@ -34,13 +34,6 @@ std::string at_mm(const Eigen::Vector3d& x) {
   return s;
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
-
 double weighted_rms(const std::vector<double>& d, const std::vector<double>& w) {
   double s = 0, sw = 0;
   for (std::size_t k = 0; k < d.size(); ++k) {
@@ -399,6 +392,13 @@ std::vector<double> averaged_knots(std::vector<double> params, int num_poles, in
     U[static_cast<std::size_t>(k)] = std::min(U[static_cast<std::size_t>(k)], U[static_cast<std::size_t>(k + 1)] - gap);
   }
   return U;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
 }
 
 void require_points(std::size_t n, const FitOptions& o) {

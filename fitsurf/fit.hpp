@@ -147,6 +147,9 @@ struct FitResult {
 FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptions& options,
                       const std::vector<double>& point_weights = {});
 
+// The median of v (the upper one of an even count; 0 for none): the robust statistics' centre.
+double median(std::vector<double> v);
+
 // At least (p + 1)(q + 1) points for degrees p x q, else GeometryError saying so.
 void require_points(std::size_t n, const FitOptions& options);
 

@@ -81,9 +81,7 @@ std::vector<double> sigma_weights(const PointCloud& cloud, const std::vector<std
 
 double median_abs(std::vector<double> v) {
   for (double& x : v) x = std::abs(x);
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
+  return median(std::move(v));
 }
 
 // The kernel prefit (PrefitOptions): heights over the points' parameter plane interpolated by
@@ -179,9 +177,7 @@ FitResult kernel_prefit_fit(const std::vector<Eigen::Vector3d>& points, const Fi
   auto near_hull = [&](const Eigen::Vector2d& x) {
     if (hull.size() >= 3 && point_in_polygon(hull, x)) return true;
     for (std::size_t i = 0; i < hull.size(); ++i) {
-      const Eigen::Vector2d a = hull[i], b = hull[(i + 1) % hull.size()];
-      const double t = std::clamp((x - a).dot(b - a) / std::max((b - a).squaredNorm(), 1e-300), 0.0, 1.0);
-      if ((a + t * (b - a) - x).norm() <= step) return true;
+      if (segment_distance(x, hull[i], hull[(i + 1) % hull.size()]) <= step) return true;
     }
     return false;
   };

@@ -14,13 +14,6 @@ double cross(const Eigen::Vector2d& o, const Eigen::Vector2d& a, const Eigen::Ve
   return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
 }
 
-double segment_distance(const Eigen::Vector2d& x, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-  const Eigen::Vector2d ab = b - a;
-  const double len2 = ab.squaredNorm();
-  const double t = len2 > 0 ? std::clamp((x - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-  return (a + t * ab - x).norm();
-}
-
 // Removes vertices closer than tol to the segment joining their neighbours (a convex polygon
 // stays convex and only shrinks).
 std::vector<Eigen::Vector2d> drop_flat_vertices(std::vector<Eigen::Vector2d> poly, double tol) {
@@ -362,6 +355,13 @@ std::vector<Eigen::Vector2d> data_outline(const std::vector<Eigen::Vector2d>& uv
               : drop_flat_vertices(hull, o.simplify_mm > 0 ? o.simplify_mm : 0.5 * spacing);
   for (auto& p : poly) p = Eigen::Vector2d(std::clamp(p.x() / lu, 0.0, 1.0), std::clamp(p.y() / lv, 0.0, 1.0));
   return poly;
+}
+
+double segment_distance(const Eigen::Vector2d& x, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  const Eigen::Vector2d ab = b - a;
+  const double len2 = ab.squaredNorm();
+  const double t = len2 > 0 ? std::clamp((x - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+  return (a + t * ab - x).norm();
 }
 
 }  // namespace photomill::fitsurf
