@@ -301,9 +301,10 @@ int main(int argc, char** argv) {
           }
           std::string kernel = "-";
           if (r.prefit) {
-            char buf[96];
-            std::snprintf(buf, sizeof buf, "%s %.3g mm t%d (%.4f)", to_string(r.prefit->model.shape).c_str(),
-                          r.prefit->model.length_mm, r.prefit->model.trend_degree, r.prefit->loo_rms_mm);
+            char buf[128];
+            const KernelModel& m = r.prefit->model;
+            std::snprintf(buf, sizeof buf, "%s %.3g mm t%d a%.3g@%.3g (%.4f)", to_string(m.shape).c_str(), m.length_mm,
+                          m.trend_degree, m.aspect, m.angle_deg, r.prefit->loo_rms_mm);
             kernel = buf;
           }
           std::printf("%-6s %5d %-8s %6zu %-16s %9.3g %10.5f %10.5f %9.5f %9.5f %6.2f %9.5f %s %.2f\n",

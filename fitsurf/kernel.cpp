@@ -5,6 +5,8 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <optional>
+#include <numbers>
 
 #include <Eigen/LU>
 
@@ -40,6 +42,18 @@ int polyharmonic_order(KernelShape k) {
 int trend_degree(const KernelModel& m) { return is_polyharmonic(m.shape) ? polyharmonic_order(m.shape) - 1 : m.trend_degree; }
 
 constexpr int trend_terms(int degree) { return (degree + 1) * (degree + 2) / 2; }
+
+// Squared distance in a model's metric (KernelModel::aspect, angle_deg).
+struct Metric {
+  double c = 1, s = 0, inv_aspect = 1;
+  explicit Metric(const KernelModel& m)
+      : c(std::cos(m.angle_deg * std::numbers::pi / 180)), s(std::sin(m.angle_deg * std::numbers::pi / 180)),
+        inv_aspect(1 / m.aspect) {}
+  double dist2(const Eigen::Vector2d& d) const {
+    const double along = (c * d.x() + s * d.y()) * inv_aspect, across = -s * d.x() + c * d.y();
+    return along * along + across * across;
+  }
+};
 
 // phi at squared distance r2 (normalised coordinates); l the normalised length.
 double phi(KernelShape k, double r2, double l) {
@@ -96,9 +110,10 @@ Solved solve(const std::vector<Eigen::Vector2d>& x, const std::vector<double>& z
   Eigen::MatrixXd A = Eigen::MatrixXd::Zero(N, N);
   Eigen::VectorXd b = Eigen::VectorXd::Zero(N);
   std::vector<double> p(static_cast<std::size_t>(q));
+  const Metric metric(model);
   for (int i = 0; i < n; ++i) {
     for (int j = 0; j <= i; ++j) {
-      A(i, j) = A(j, i) = phi(k, (x[static_cast<std::size_t>(i)] - x[static_cast<std::size_t>(j)]).squaredNorm(), l);
+      A(i, j) = A(j, i) = phi(k, metric.dist2(x[static_cast<std::size_t>(i)] - x[static_cast<std::size_t>(j)]), l);
     }
     monomials(degree, x[static_cast<std::size_t>(i)], p.data());
     for (int j = 0; j < q; ++j) A(i, n + j) = A(n + j, i) = p[static_cast<std::size_t>(j)];
@@ -176,6 +191,11 @@ std::string to_string(const KernelModel& m) {
     std::snprintf(buf, sizeof buf, ", length %.3g mm, %s trend", m.length_mm, m.trend_degree == 1 ? "linear" : m.trend_degree == 2 ? "quadratic" : "polynomial");
     s += buf;
   }
+  if (m.aspect != 1) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, ", %.3gx along %.3g deg", m.aspect, m.angle_deg);
+    s += buf;
+  }
   return s;
 }
 
@@ -183,8 +203,9 @@ double KernelInterpolant::operator()(const Eigen::Vector2d& xy_mm) const {
   const Eigen::Vector2d x = (xy_mm - centre_mm_) / scale_mm_;
   const double l = model_.length_mm / scale_mm_;
   const std::size_t n = nodes_.size();
+  const Metric metric(model_);
   double z = 0;
-  for (std::size_t i = 0; i < n; ++i) z += coef_(static_cast<Eigen::Index>(i)) * phi(model_.shape, (x - nodes_[i]).squaredNorm(), l);
+  for (std::size_t i = 0; i < n; ++i) z += coef_(static_cast<Eigen::Index>(i)) * phi(model_.shape, metric.dist2(x - nodes_[i]), l);
   const int degree = trend_degree(model_);
   double p[trend_terms(kMaxTrendDegree)];
   monomials(degree, x, p);
@@ -201,6 +222,9 @@ KernelInterpolant fit_kernel_model(const std::vector<Eigen::Vector2d>& xy_mm, co
     m.trend_degree = polyharmonic_order(m.shape) - 1;
   } else if (!(m.length_mm > 0) || m.trend_degree < 0 || m.trend_degree > kMaxTrendDegree) {
     throw std::invalid_argument("fit_kernel_model: the length must be positive and the trend degree 0-4");
+  }
+  if (!(m.aspect >= 1) || !std::isfinite(m.aspect) || !std::isfinite(m.angle_deg)) {
+    throw std::invalid_argument("fit_kernel_model: the aspect must be finite and >= 1");
   }
   Solved s = solve(p.nodes, z_mm, m, p.scale, options.ridge);
   if (!s.ok) {
@@ -226,6 +250,10 @@ KernelInterpolant fit_kernel(const std::vector<Eigen::Vector2d>& xy_mm, const st
       !(options.coarse_ratio > 1) || !(options.fine_ratio > 1) || !(options.ridge >= 0)) {
     throw std::invalid_argument("KernelOptions: lengths must be positive and increasing, the ratios > 1, the ridge >= 0");
   }
+  if (!(options.max_aspect >= 1) || !(options.aspect_step > 1) || options.directions < 1 ||
+      options.anisotropic_families < 0 || !(options.anisotropic_length_span >= 1) || !(options.anisotropy_gain >= 1)) {
+    throw std::invalid_argument("KernelOptions: the aspects must be >= 1 with a step > 1, directions >= 1, the span and gain >= 1");
+  }
   const Prepared p = prepare(xy_mm, z_mm);
   std::vector<KernelCandidate> cand;
   auto evaluate = [&](std::size_t from) {
@@ -236,6 +264,31 @@ KernelInterpolant fit_kernel(const std::vector<Eigen::Vector2d>& xy_mm, const st
                    }
                  });
   };
+  auto best_of = [&](std::size_t from, std::size_t to, auto&& pred) {
+    const KernelCandidate* best = nullptr;
+    for (std::size_t i = from; i < to; ++i) {
+      if (pred(cand[i].model) && std::isfinite(cand[i].loo_rms_mm) && (!best || cand[i].loo_rms_mm < best->loo_rms_mm)) {
+        best = &cand[i];
+      }
+    }
+    return best ? std::optional<KernelCandidate>(*best) : std::nullopt;
+  };
+  // Around a coarse best length (coarse_ratio apart), fine_ratio steps.
+  auto refine = [&](const KernelModel& centre_model) {
+    const double centre = centre_model.length_mm;
+    for (double l = centre / options.coarse_ratio * options.fine_ratio; l < centre * options.coarse_ratio; l *= options.fine_ratio) {
+      if (std::abs(l / centre - 1) > 1e-9) {
+        KernelModel m = centre_model;
+        m.length_mm = l;
+        cand.push_back({m, 0.0});
+      }
+    }
+  };
+  auto same_family = [](const KernelModel& a, const KernelModel& b) {
+    return a.shape == b.shape && a.trend_degree == b.trend_degree;
+  };
+
+  // Isotropic: every kernel and trend, the lengths coarse, then fine around each family's best.
   for (KernelShape k : {KernelShape::Polyharmonic3, KernelShape::Polyharmonic4, KernelShape::Polyharmonic5}) {
     cand.push_back({{k, polyharmonic_order(k) - 1, 0.0}, 0.0});
   }
@@ -247,32 +300,66 @@ KernelInterpolant fit_kernel(const std::vector<Eigen::Vector2d>& xy_mm, const st
     }
   }
   evaluate(0);
-  // Around each positive definite family's best coarse length, finer steps.
   const std::size_t coarse = cand.size();
-  for (KernelShape k : definite) {
-    for (int degree : {1, 2}) {
-      const KernelCandidate* best = nullptr;
-      for (std::size_t i = 0; i < coarse; ++i) {
-        const KernelCandidate& c = cand[i];
-        if (c.model.shape == k && c.model.trend_degree == degree && (!best || c.loo_rms_mm < best->loo_rms_mm)) best = &c;
-      }
-      if (!best || !std::isfinite(best->loo_rms_mm)) continue;
-      const double centre = best->model.length_mm;
-      for (double l = centre / options.coarse_ratio * options.fine_ratio; l < centre * options.coarse_ratio; l *= options.fine_ratio) {
-        if (std::abs(l / centre - 1) > 1e-9) cand.push_back({{k, degree, l}, 0.0});
-      }
+  std::vector<KernelCandidate> family_best;  // each family's best coarse candidate
+  for (const KernelCandidate& c : cand) {
+    if (std::none_of(family_best.begin(), family_best.end(), [&](const KernelCandidate& f) { return same_family(f.model, c.model); })) {
+      if (auto b = best_of(0, coarse, [&](const KernelModel& m) { return same_family(m, c.model); })) family_best.push_back(*b);
     }
   }
-  evaluate(coarse);
-  std::size_t best = 0;
-  for (std::size_t i = 1; i < cand.size(); ++i) {
-    if (cand[i].loo_rms_mm < cand[best].loo_rms_mm) best = i;
+  for (const KernelCandidate& f : family_best) {
+    if (!is_polyharmonic(f.model.shape)) refine(f.model);
   }
-  if (!std::isfinite(cand[best].loo_rms_mm)) {
+  evaluate(coarse);
+  const std::size_t isotropic = cand.size();
+  const auto iso_best = best_of(0, isotropic, [](const KernelModel&) { return true; });
+  if (!iso_best) {
     throw GeometryError("no kernel interpolates these " + std::to_string(xy_mm.size()) +
                         " points: every system is singular (coincident points?)");
   }
-  KernelInterpolant k = fit_kernel_model(xy_mm, z_mm, cand[best].model, options);
+  KernelModel chosen = iso_best->model;
+
+  // Anisotropic: the best families (by their best length, fine included) with aspects and
+  // directions, lengths across around their isotropic best.
+  std::vector<KernelCandidate> families;
+  for (const KernelCandidate& f : family_best) {
+    if (auto b = best_of(0, isotropic, [&](const KernelModel& m) { return same_family(m, f.model); })) families.push_back(*b);
+  }
+  std::sort(families.begin(), families.end(),
+            [](const KernelCandidate& a, const KernelCandidate& b) { return a.loo_rms_mm < b.loo_rms_mm; });
+  families.resize(std::min(families.size(), static_cast<std::size_t>(options.anisotropic_families)));
+  std::vector<double> aspects;
+  for (double a = options.aspect_step; a <= options.max_aspect * (1 + 1e-12); a *= options.aspect_step) aspects.push_back(a);
+  if (!aspects.empty() && !families.empty()) {
+    for (const KernelCandidate& f : families) {
+      for (double a : aspects) {
+        for (int d = 0; d < options.directions; ++d) {
+          KernelModel m = f.model;
+          m.aspect = a;
+          m.angle_deg = 180.0 * d / options.directions;
+          if (is_polyharmonic(m.shape)) {
+            cand.push_back({m, 0.0});
+            continue;
+          }
+          const double centre = f.model.length_mm;
+          for (double l = centre / options.anisotropic_length_span; l <= centre * std::sqrt(options.anisotropic_length_span) * (1 + 1e-12);
+               l *= options.coarse_ratio) {
+            m.length_mm = l;
+            cand.push_back({m, 0.0});
+          }
+        }
+      }
+    }
+    evaluate(isotropic);
+    const std::size_t anisotropic = cand.size();
+    if (auto b = best_of(isotropic, anisotropic, [](const KernelModel&) { return true; })) {
+      if (!is_polyharmonic(b->model.shape)) refine(b->model);
+      evaluate(anisotropic);
+      const auto aniso_best = best_of(isotropic, cand.size(), [](const KernelModel&) { return true; });
+      if (aniso_best && aniso_best->loo_rms_mm * options.anisotropy_gain < iso_best->loo_rms_mm) chosen = aniso_best->model;
+    }
+  }
+  KernelInterpolant k = fit_kernel_model(xy_mm, z_mm, chosen, options);
   k.candidates_ = std::move(cand);
   return k;
 }

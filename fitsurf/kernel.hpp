@@ -24,9 +24,11 @@
 // interpolation", Adv. Comput. Math. 11, eq. 2.5; with the polynomial block, A the whole matrix).
 // The candidate with the smallest RMS of e_k wins: every kernel and trend, the lengths l from
 // min_length_spacings to max_length_spacings mean point spacings in steps of coarse_ratio, then
-// around each kernel's best in steps of fine_ratio. (A nugget for noisy points - kriging with
-// measurement error, its scale by the discrepancy principle - was tried and gained nothing on 150
-// markers with 0.005-0.1 mm noise, docs/fitsurf.md; fitsurf keeps the spline's --noise-mm for them.)
+// around each kernel's best in steps of fine_ratio; then the best families anisotropic
+// (KernelModel::aspect, KernelOptions::max_aspect), taken only by a margin (anisotropy_gain).
+// (A nugget for noisy points - kriging with measurement error, its scale by the discrepancy
+// principle - was tried and gained nothing on 150 markers with 0.005-0.1 mm noise,
+// docs/fitsurf.md; fitsurf keeps the spline's --noise-mm for them.)
 #pragma once
 
 #include <string>
@@ -44,8 +46,15 @@ struct KernelModel {
   KernelShape shape = KernelShape::Gaussian;
   int trend_degree = 1;  // degree of the polynomial part (the polyharmonic kernels: m - 1, fixed)
   double length_mm = 0;  // l; 0 for the polyharmonic kernels (scale-free)
+  // Anisotropy: distances are measured with the long axis, at angle_deg from the u axis, shrunk by
+  // aspect, r^2 = (d.e / aspect)^2 + (d.e_perp)^2, so l is the length across that axis and
+  // aspect * l the length along it (Rasmussen & Williams 2006, eq. 5.2, M = R diag(l_i^-2) R^T;
+  // any affine map of the plane keeps the polyharmonic kernels' polynomial reproduction). A ridge or
+  // a fold, flat along one direction, is predicted from markers far along it. aspect 1: isotropic.
+  double aspect = 1;
+  double angle_deg = 0;  // [0, 180)
 };
-std::string to_string(const KernelModel& m);  // "matern52, length 29.3 mm, linear trend"
+std::string to_string(const KernelModel& m);  // "matern52, length 29.3 mm, linear trend[, 4x along 45 deg]"
 
 struct KernelOptions {
   double min_length_spacings = 0.5;  // shortest length l tried, in mean point spacings
@@ -53,6 +62,19 @@ struct KernelOptions {
   double coarse_ratio = 1.25;        // geometric step between the lengths tried first
   double fine_ratio = 1.05;          // then around each kernel's best
   double ridge = 1e-8;               // added to Phi's diagonal (phi(0) = 1) for the positive definite kernels
+  // Anisotropic candidates: the best isotropic kernel/trend families (anisotropic_families) again
+  // with aspects aspect_step, aspect_step^2, ... up to max_aspect, long axes `directions` evenly
+  // spread over 180 degrees, lengths across from 1 / anisotropic_length_span to
+  // anisotropic_length_span^(1/2) times the family's isotropic best (coarse_ratio steps, then
+  // fine). One is chosen only when its leave-one-out RMS is anisotropy_gain times smaller than the
+  // isotropic best's: on 150 markers of parts without a preferred direction the extra freedom
+  // otherwise wins by a few per cent and extrapolates worse (docs/fitsurf.md). max_aspect 1: none.
+  double max_aspect = 8;
+  double aspect_step = 2;
+  int directions = 4;
+  int anisotropic_families = 2;
+  double anisotropic_length_span = 4;
+  double anisotropy_gain = 1.25;
   int threads = 0;                   // 0: all hardware threads
 };
 

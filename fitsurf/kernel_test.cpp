@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -68,7 +69,10 @@ INSTANTIATE_TEST_SUITE_P(Models, EveryKernel,
                                            KernelModel{KernelShape::Matern32, 1, 40}, KernelModel{KernelShape::Matern52, 2, 40},
                                            KernelModel{KernelShape::Matern72, 1, 30}, KernelModel{KernelShape::Polyharmonic3, 2, 0},
                                            KernelModel{KernelShape::Polyharmonic4, 3, 0},
-                                           KernelModel{KernelShape::Polyharmonic5, 4, 0}));
+                                           KernelModel{KernelShape::Polyharmonic5, 4, 0},
+                                           KernelModel{KernelShape::Gaussian, 1, 8, 3, 30},
+                                           KernelModel{KernelShape::Matern52, 2, 25, 2, 90},
+                                           KernelModel{KernelShape::Polyharmonic3, 2, 0, 4, 120}));
 
 // Heights on a quadratic: every kernel whose trend holds quadratics reproduces it exactly, so
 // the search finds a leave-one-out RMS of (nearly) zero and the interpolant is the quadratic
@@ -85,16 +89,69 @@ TEST(Kernel, ReproducesAQuadraticTrendExactly) {
   EXPECT_GT(k.candidates().size(), 100u);
 }
 
-// The chosen candidate is the one of smallest leave-one-out RMS, and it is what the result says.
-TEST(Kernel, ChoosesTheSmallestLeaveOneOutError) {
-  const Sample s = sample("bumps", 120, 0.01, 64);
-  const KernelInterpolant k = fit_kernel(s.xy, s.z);
-  double best = INFINITY;
-  for (const auto& c : k.candidates()) best = std::min(best, c.loo_rms_mm);
-  EXPECT_EQ(k.loo_rms_mm(), best);
+// The chosen candidate is the isotropic one of smallest leave-one-out RMS unless an anisotropic
+// one is anisotropy_gain times smaller (then the smallest of all), and it is what the result says.
+class Choice : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(Choice, SmallestLeaveOneOutErrorAnisotropicOnlyByAMargin) {
+  const Sample s = sample(GetParam(), 120, 0.01, 64);
+  const KernelOptions options;
+  const KernelInterpolant k = fit_kernel(s.xy, s.z, options);
+  double iso = INFINITY, all = INFINITY;
+  for (const auto& c : k.candidates()) {
+    all = std::min(all, c.loo_rms_mm);
+    if (c.model.aspect == 1) iso = std::min(iso, c.loo_rms_mm);
+  }
+  if (k.model().aspect == 1) {
+    EXPECT_EQ(k.loo_rms_mm(), iso);
+    EXPECT_GE(all * options.anisotropy_gain, iso);
+  } else {
+    EXPECT_EQ(k.loo_rms_mm(), all);
+    EXPECT_LT(all * options.anisotropy_gain, iso);
+  }
   double sum2 = 0;
   for (double e : k.loo_residual_mm()) sum2 += e * e;
   EXPECT_NEAR(std::sqrt(sum2 / 120), k.loo_rms_mm(), 1e-12);
+  std::printf("%s: %s, LOO RMS %.4f mm (isotropic %.4f)\n", GetParam(), to_string(k.model()).c_str(), k.loo_rms_mm(), iso);
+}
+
+// bumps and steep (round features): isotropic; ridge (flat along x): anisotropic.
+INSTANTIATE_TEST_SUITE_P(Shapes, Choice, ::testing::Values("bumps", "steep", "ridge"));
+
+// A fold z = 20 + 8 tanh(d / 12), d the distance across a line at angle a, is flat along the
+// line: the anisotropic kernel is chosen with its long axis along it (the nearest of the
+// directions tried, 45 degrees apart) and predicts the points at least twice as well as any
+// isotropic one; a round bump keeps the isotropic kernel; max_aspect 1 tries none.
+class Fold : public ::testing::TestWithParam<double> {};
+
+TEST_P(Fold, LongAxisAlongTheFold) {
+  const double a = GetParam() * std::numbers::pi / 180;
+  Sample s = sample("dome", 150, 0.0, 65);
+  for (std::size_t i = 0; i < s.z.size(); ++i) {
+    s.z[i] = 20 + 8 * std::tanh((-std::sin(a) * s.xy[i].x() + std::cos(a) * s.xy[i].y()) / 12);
+  }
+  const KernelInterpolant k = fit_kernel(s.xy, s.z);
+  EXPECT_GE(k.model().aspect, 4) << to_string(k.model());
+  EXPECT_EQ(k.model().angle_deg, GetParam()) << to_string(k.model());
+  double iso = INFINITY;
+  for (const auto& c : k.candidates()) {
+    if (c.model.aspect == 1) iso = std::min(iso, c.loo_rms_mm);
+  }
+  EXPECT_LT(2 * k.loo_rms_mm(), iso);
+  KernelOptions isotropic;
+  isotropic.max_aspect = 1;
+  const KernelInterpolant round = fit_kernel(s.xy, s.z, isotropic);
+  EXPECT_EQ(round.model().aspect, 1);
+  EXPECT_EQ(round.loo_rms_mm(), iso);
+  for (const auto& c : round.candidates()) EXPECT_EQ(c.model.aspect, 1);
+}
+
+INSTANTIATE_TEST_SUITE_P(Angles, Fold, ::testing::Values(0.0, 45.0, 90.0, 135.0));
+
+TEST(Kernel, RoundBumpStaysIsotropic) {
+  Sample s = sample("dome", 150, 0.0, 66);
+  for (std::size_t i = 0; i < s.z.size(); ++i) s.z[i] = 20 + 20 * std::exp(-s.xy[i].squaredNorm() / (2 * 20.0 * 20.0));
+  EXPECT_EQ(fit_kernel(s.xy, s.z).model().aspect, 1);
 }
 
 TEST(Kernel, DegenerateInputIsAGeometryError) {

@@ -96,6 +96,8 @@ void write_report(std::ostream& out, const Result& r, const Options& o, const st
       j.null();
     }
     j.field("trend_degree", k.model.trend_degree);
+    j.field("aspect", k.model.aspect);
+    j.field("long_axis_deg", k.model.angle_deg);
     j.field("loo_rms_mm", k.loo_rms_mm);
     j.field("candidates", k.candidates);
     j.field("samples", k.samples);
