@@ -54,8 +54,10 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--degree-u", f.degree_u, "Degree p along u")->capture_default_str()->check(CLI::Range(1, 25))->group(srf);
   app.add_option("--degree-v", f.degree_v, "Degree q along v")->capture_default_str()->check(CLI::Range(1, 25))->group(srf);
   app.add_option("--net", c.net, "Control net NUxNV (poles along u and v), or N for NxN")->capture_default_str()->group(srf);
-  app.add_option("--knots", c.knots, "Knot placement: clamped uniform, or averaged over the data (NURBS Book 9.69)")
-      ->capture_default_str()->check(CLI::IsMember({"uniform", "averaged"}))->group(srf);
+  app.add_option("--knots", c.knots,
+                 "Knot placement: clamped uniform, averaged over the data (NURBS Book 9.69), or adaptive: placed by "
+                 "the shape of a first uniform fit, denser where it bends sharply (de Boor's NEWNOT; twice the time)")
+      ->capture_default_str()->check(CLI::IsMember({"uniform", "averaged", "adaptive"}))->group(srf);
   app.add_option("--plane", c.plane, "Parameter plane: best-fit plane of the points (pca) or world xy")
       ->capture_default_str()->check(CLI::IsMember({"pca", "xy"}))->group(srf);
   app.add_option("--smoothing", f.smoothing_mm4,
@@ -146,7 +148,9 @@ std::pair<int, int> parse_net(const std::string& text) {
 Options to_options(const Cli& c) {
   Options o = c.options;
   std::tie(o.fit.poles_u, o.fit.poles_v) = parse_net(c.net);
-  o.fit.knots = c.knots == "averaged" ? KnotPlacement::Averaged : KnotPlacement::Uniform;
+  o.fit.knots = c.knots == "averaged"   ? KnotPlacement::Averaged
+                : c.knots == "adaptive" ? KnotPlacement::Adaptive
+                                        : KnotPlacement::Uniform;
   o.fit.plane = c.plane == "xy" ? PlaneChoice::Xy : PlaneChoice::Pca;
   o.fit.solver = c.solver == "cg" ? LinearSolver::Cg : LinearSolver::Ldlt;
   o.fit.robust = c.robust == "none"    ? RobustLoss::None

@@ -335,9 +335,10 @@ void check_height_field(const std::vector<Eigen::Vector3d>& local, const Paramet
   }
 }
 
+// Adaptive knots come from a first fit (fit_net); the coarse nets of the screening take uniform ones.
 std::vector<double> knots_for(KnotPlacement placement, const std::vector<Eigen::Vector2d>& uv, int num_poles,
                               int degree, int coordinate) {
-  if (placement == KnotPlacement::Uniform) return clamped_uniform_knots(num_poles, degree, 0.0, 1.0);
+  if (placement != KnotPlacement::Averaged) return clamped_uniform_knots(num_poles, degree, 0.0, 1.0);
   std::vector<double> params(uv.size());
   for (std::size_t k = 0; k < uv.size(); ++k) params[k] = uv[k][coordinate];
   return averaged_knots(std::move(params), num_poles, degree);
@@ -364,6 +365,7 @@ void validate(const FitOptions& o) {
   need(o.robust_threshold >= 0, "--robust-threshold must be >= 0");
   need(o.gross_threshold > 0 && o.gross_points_per_pole > 0, "the gross-outlier screening options must be positive");
   need(o.robust_min_scale_mm > 0, "--robust-floor-mm must be positive");
+  need(o.adaptive_knot_ratio >= 1 && o.adaptive_knot_floor_mm > 0, "the adaptive knots' ratio must be >= 1 and floor > 0");
   need(o.cg_tolerance > 0 && o.cg_max_iterations > 0, "CG tolerance and iterations must be positive");
   need(o.threads >= 0, "--threads must be >= 0");
 }
@@ -390,6 +392,69 @@ std::vector<double> averaged_knots(std::vector<double> params, int num_poles, in
   }
   for (int k = n; k >= p + 1; --k) {
     U[static_cast<std::size_t>(k)] = std::min(U[static_cast<std::size_t>(k)], U[static_cast<std::size_t>(k + 1)] - gap);
+  }
+  return U;
+}
+
+std::vector<double> adaptive_knots(const BSplineSurface& first, int direction, int num_poles, double ratio,
+                                   double floor_mm) {
+  const int p = direction == 0 ? first.degree_u : first.degree_v;
+  const std::vector<double>& T = direction == 0 ? first.knots_u : first.knots_v;
+  const int n = (direction == 0 ? first.num_poles_u : first.num_poles_v) - 1;
+  const int rows = direction == 0 ? first.num_poles_v : first.num_poles_u;
+  const int spans = n - p + 1;
+  const int new_spans = num_poles - p;
+  if (spans < 2 || new_spans < 1 || !(ratio >= 1)) return clamped_uniform_knots(num_poles, p, 0.0, 1.0);
+  // Squared jumps of the p-th derivative at the interior knots T[p + b], b = 1..spans-1, summed over rows.
+  std::vector<double> jump2(static_cast<std::size_t>(spans + 1), 0.0);
+  std::vector<Eigen::Vector3d> Q(static_cast<std::size_t>(n + 1));
+  for (int row = 0; row < rows; ++row) {
+    for (int i = 0; i <= n; ++i) Q[static_cast<std::size_t>(i)] = direction == 0 ? first.pole(i, row) : first.pole(row, i);
+    // The NURBS Book eq. 3.8: P^(k)_i = (p - k + 1) / (u_{i+p+1} - u_{i+k}) (P^(k-1)_{i+1} - P^(k-1)_i);
+    // after k = p, Q[i] (i = 0..n-p) is the constant p-th derivative on the span [T[i+p], T[i+p+1]].
+    for (int k = 1; k <= p; ++k) {
+      for (int i = 0; i <= n - k; ++i) {
+        const double du = T[static_cast<std::size_t>(i + p + 1)] - T[static_cast<std::size_t>(i + k)];
+        Q[static_cast<std::size_t>(i)] = du > 0 ? Eigen::Vector3d((p - k + 1) / du * (Q[static_cast<std::size_t>(i + 1)] - Q[static_cast<std::size_t>(i)]))
+                                                : Eigen::Vector3d::Zero();
+      }
+    }
+    for (int b = 1; b < spans; ++b) {
+      const double width = 0.5 * (T[static_cast<std::size_t>(p + b + 1)] - T[static_cast<std::size_t>(p + b - 1)]);
+      const double j = width > 0 ? (Q[static_cast<std::size_t>(b)] - Q[static_cast<std::size_t>(b - 1)]).norm() / width : 0.0;
+      jump2[static_cast<std::size_t>(b)] += j * j;
+    }
+  }
+  // Density on each span: |D^(p+1) f|^(1/(p+1)), |D^(p+1) f| the mean of the RMS jumps at its ends.
+  std::vector<double> g(static_cast<std::size_t>(spans));
+  double mean = 0;
+  for (int i = 0; i < spans; ++i) {
+    double a = 0;
+    int m = 0;
+    for (int b : {i, i + 1}) {
+      if (b >= 1 && b < spans) {
+        a += std::sqrt(jump2[static_cast<std::size_t>(b)] / rows);
+        ++m;
+      }
+    }
+    const double h = T[static_cast<std::size_t>(i + p + 1)] - T[static_cast<std::size_t>(i + p)];
+    g[static_cast<std::size_t>(i)] = h > 0 ? std::pow(a / m + floor_mm / std::pow(h, p + 1), 1.0 / (p + 1)) : 0.0;
+    mean += g[static_cast<std::size_t>(i)] * h;
+  }
+  if (!(mean > 0) || !std::isfinite(mean)) return clamped_uniform_knots(num_poles, p, 0.0, 1.0);  // a plane: nothing to follow
+  std::vector<double> G(static_cast<std::size_t>(spans + 1), 0.0);  // its integral up to T[p + i]
+  for (int i = 0; i < spans; ++i) {
+    double& gi = g[static_cast<std::size_t>(i)];
+    gi = std::clamp(gi, mean / ratio, mean * ratio);
+    G[static_cast<std::size_t>(i + 1)] = G[static_cast<std::size_t>(i)] + gi * (T[static_cast<std::size_t>(i + p + 1)] - T[static_cast<std::size_t>(i + p)]);
+  }
+  std::vector<double> U(static_cast<std::size_t>(num_poles + p + 1), 0.0);
+  for (int k = num_poles; k <= num_poles + p; ++k) U[static_cast<std::size_t>(k)] = 1.0;
+  int i = 0;
+  for (int j = 1; j < new_spans; ++j) {
+    const double t = G.back() * j / new_spans;
+    while (i < spans - 1 && G[static_cast<std::size_t>(i + 1)] <= t) ++i;
+    U[static_cast<std::size_t>(p + j)] = T[static_cast<std::size_t>(i + p)] + (t - G[static_cast<std::size_t>(i)]) / g[static_cast<std::size_t>(i)];
   }
   return U;
 }
@@ -439,6 +504,14 @@ FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& 
   space.nv = o.poles_v;
   space.U = knots_for(o.knots, uv, o.poles_u, p, 0);
   space.V = knots_for(o.knots, uv, o.poles_v, q, 1);
+  if (o.knots == KnotPlacement::Adaptive) {
+    // The first fit, with uniform knots and the same options, shows where the shape needs them.
+    FitOptions first = o;
+    first.knots = KnotPlacement::Uniform;
+    const FitResult f = fit_net(points, first, point_weights);
+    space.U = adaptive_knots(f.local_surface, 0, o.poles_u, o.adaptive_knot_ratio, o.adaptive_knot_floor_mm);
+    space.V = adaptive_knots(f.local_surface, 1, o.poles_v, o.adaptive_knot_ratio, o.adaptive_knot_floor_mm);
+  }
   NetSolver solver(space, o, r.box.length_u_mm(), r.box.length_v_mm());
   const bool reweight = o.robust != RobustLoss::None &&
                         static_cast<double>(points.size()) >= o.robust_min_redundancy * space.num_poles();

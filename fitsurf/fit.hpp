@@ -6,7 +6,8 @@
 //   1. parameter frame: best-fit plane (PCA) or the xy plane; first parameters (u_k, v_k) by
 //      orthogonal projection onto it, scaled to the data's rectangle [0,1]^2;
 //   2. knots: clamped uniform, or averaged (NURBS Book eq. 9.69 on the sorted parameters, so every
-//      span holds about as many points);
+//      span holds about as many points), or adaptive (adaptive_knots: placed by the shape of a
+//      first fit with uniform knots, denser where it bends sharply);
 //   3. round r: solve the normal equations (normal_equations.hpp) for the poles with weights
 //      w_k; project every point onto the new surface (Newton foot point) - the parameter
 //      correction of Hoschek (1988, "Intrinsic parametrization for approximation") - and take
@@ -41,7 +42,7 @@
 
 namespace photomill::fitsurf {
 
-enum class KnotPlacement { Uniform, Averaged };
+enum class KnotPlacement { Uniform, Averaged, Adaptive };
 enum class LinearSolver { Ldlt, Cg };
 enum class RobustLoss { None, Reject, Huber, Tukey };
 
@@ -70,6 +71,12 @@ struct FitOptions {
   int poles_u = 30;                   // control net size along u (n + 1)
   int poles_v = 30;                   // along v (m + 1)
   KnotPlacement knots = KnotPlacement::Uniform;
+  // Adaptive knots (adaptive_knots below): the density of knots is kept within this factor of
+  // its mean, so a flat stretch still gets knots and a sharp one does not take them all.
+  double adaptive_knot_ratio = 4;
+  // ... and every span's |D^(p+1) f| h^(p+1) (its error scale) counts at least this much, so
+  // that a plane, or a shape flat to a tenth of a micrometre, keeps uniform knots.
+  double adaptive_knot_floor_mm = 1e-4;
   PlaneChoice plane = PlaneChoice::Pca;
   double smoothing_mm4 = 1e-2;        // lambda of the smoothing term (normal_equations.hpp); mm^6 for order 3
   // m of the smoothing energy E_m (normal_equations.hpp): 2 = thin plate (second derivatives;
@@ -161,5 +168,17 @@ void check_no_fold(const FitResult& fit, const std::vector<Eigen::Vector2d>& bou
 // with interior knots kept at least 5% of a uniform span apart. Falls back to uniform knots
 // when there are fewer parameters than spans.
 std::vector<double> averaged_knots(std::vector<double> params, int num_poles, int degree);
+
+// Knots placed by the shape of a first fit (de Boor 1978/2001, "A Practical Guide to Splines",
+// ch. XII, NEWNOT): the error of a degree-p spline on a span of width h is about
+// C h^(p+1) |D^(p+1) f|, so knots that make h |D^(p+1) f|^(1/(p+1)) equal on every span
+// equidistribute it. |D^(p+1) f| near each interior knot of `first` along `direction` (0: u,
+// 1: v) is the jump of its p-th derivative there over the mean width of the two spans (the p-th
+// derivative's control points, The NURBS Book eq. 3.8, one per span, of every row of poles;
+// RMS over the rows); each span takes the mean of its two ends plus floor_mm / h^(p+1) (h its
+// width); the density |D^(p+1) f|^(1/(p+1)) is clamped to [mean / ratio, mean * ratio]; the new
+// knots split its integral into num_poles - p equal parts. Clamped on [0, 1].
+std::vector<double> adaptive_knots(const BSplineSurface& first, int direction, int num_poles, double ratio,
+                                   double floor_mm);
 
 }  // namespace photomill::fitsurf

@@ -11,7 +11,9 @@ std::string num(double v) { return sig(v, 4); }
 
 }  // namespace
 
-std::string to_string(KnotPlacement k) { return k == KnotPlacement::Uniform ? "uniform" : "averaged"; }
+std::string to_string(KnotPlacement k) {
+  return k == KnotPlacement::Uniform ? "uniform" : k == KnotPlacement::Averaged ? "averaged" : "adaptive";
+}
 std::string to_string(PlaneChoice p) { return p == PlaneChoice::Pca ? "pca" : "xy"; }
 std::string to_string(LinearSolver s) { return s == LinearSolver::Ldlt ? "ldlt" : "cg"; }
 std::string to_string(RobustLoss r) {
@@ -164,7 +166,8 @@ std::vector<std::string> summary(const Result& r, const Options& o) {
   std::string s = std::to_string(r.selection.kept.size()) + " points fitted";
   if (dropped) s += " (" + std::to_string(dropped) + " of " + std::to_string(r.input_points) + " dropped by selection)";
   s += "; " + std::to_string(f.surface.num_poles_u) + "x" + std::to_string(f.surface.num_poles_v) + " poles, degree " +
-       std::to_string(f.surface.degree_u) + "x" + std::to_string(f.surface.degree_v) + ", smoothing " +
+       std::to_string(f.surface.degree_u) + "x" + std::to_string(f.surface.degree_v) +
+       (o.fit.knots == KnotPlacement::Uniform ? "" : ", " + to_string(o.fit.knots) + " knots") + ", smoothing " +
        num(f.smoothing_mm4) + (o.fit.smoothing_order == 3 ? " mm^6 (order 3)" : " mm^4") +
        (o.fit.noise_mm > 0 ? " (for noise " + num(o.fit.noise_mm) + " mm)" : "") +
        (o.weight_by_sigma ? ", points weighted by 1/sigma^2" : "") + ", " + std::to_string(f.round_rms_mm.size()) + " round" +
