@@ -1,0 +1,128 @@
+// fitsurf against synth's own parts (tests/synth/height_field.hpp, the shapes synth renders and
+// the demo chain reconstructs): h = w f, f the kind of shape, w the 20 mm blend down to the plate.
+// Issue #7's Done-when on "synth's true surfaces": 100 000 noisy points within 0.01 mm RMS with a
+// 30 x 30 net (adaptive knots), and ~150 marker points within 0.1 mm inside their hull where synth
+// puts the part's markers, on the part's interior inside the blend (synth::make_scene, tests/synth/scene.cpp). With
+// markers across the blend as well, 150 points cannot pin the blend down, and the kernel prefit's
+// leave-one-out error says so (docs/fitsurf.md, "Sparse points").
+#include <cstdint>
+#include <string>
+#include <tuple>
+
+#include <gtest/gtest.h>
+
+#include "fitsurf/fitsurf.hpp"
+#include "fitsurf/outline.hpp"
+#include "fitsurf/test_shapes.hpp"
+#include "formats/log.hpp"
+#include "tests/synth/height_field.hpp"
+
+namespace photomill::fitsurf {
+namespace {
+
+constexpr double kPartLengthX = 150, kPartLengthY = 100, kPartHeight = 30, kBlend = 20;  // mm, synth's defaults
+
+test::Shape synth_part(const std::string& name) {
+  const synth::HeightField h = synth::make_shape(name, kPartLengthX, kPartLengthY, kPartHeight, kBlend);
+  return {name, [h](double x, double y) { return h.height_mm(x, y); }};
+}
+
+// An nx x ny grid over [-hx, hx] x [-hy, hy], each point jittered by up to 0.3 of the spacing, with
+// Gaussian noise of sigma_mm on each coordinate.
+PointCloud markers(const test::Shape& shape, double hx, double hy, int nx, int ny, double sigma_mm,
+                   std::uint64_t seed) {
+  test::Rng rng(seed);
+  const double dx = 2 * hx / nx, dy = 2 * hy / ny, jitter = 0.3 * std::min(dx, dy);
+  PointCloud c;
+  for (int i = 0; i < nx; ++i) {
+    for (int j = 0; j < ny; ++j) {
+      const double x = -hx + (i + 0.5) * dx + rng.uniform(-jitter, jitter);
+      const double y = -hy + (j + 0.5) * dy + rng.uniform(-jitter, jitter);
+      c.points_mm.push_back(Eigen::Vector3d(x, y, shape.f(x, y)) +
+                            sigma_mm * Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()));
+    }
+  }
+  return c;
+}
+
+test::TruthDeviation truth(const BSplineSurface& s, const test::Shape& shape) {
+  return test::compare_with_truth(s, shape, 120, [&](const Eigen::Vector2d& uv) {
+    return s.boundary_uv.empty() || point_in_polygon(s.boundary_uv, uv);
+  });
+}
+
+class SynthParts : public ::testing::Test {
+protected:
+  void SetUp() override { log::set_level(log::Level::Quiet); }
+};
+
+// 150 markers (15 x 10, 7.3 x 6 mm apart) over the interior, |x| < 55, |y| < 30 mm, with the
+// default options (the kernel prefit). Measured on 24 jitter seeds (docs/fitsurf.md): saddle,
+// wave and dome within 0.1 mm on all, bumps (the demo part) on 22 (0.102 and 0.126 at the hull's
+// edge); at least 2.5 mm inside the hull every seed is within 0.075 mm.
+using SynthSeed = std::tuple<std::string, std::uint64_t>;
+class SynthSparseInterior : public SynthParts, public ::testing::WithParamInterface<SynthSeed> {};
+
+TEST_P(SynthSparseInterior, WithinATenthOfAMillimetreWithoutWiggles) {
+  const auto& [name, seed] = GetParam();
+  const test::Shape shape = synth_part(name);
+  const PointCloud cloud = markers(shape, kPartLengthX / 2 - kBlend, kPartLengthY / 2 - kBlend, 15, 10, 0.01, seed);
+  const Result r = fit_point_cloud(cloud, Options{});
+  ASSERT_TRUE(r.prefit.has_value());
+  const auto dev = truth(r.fit.surface, shape);
+  EXPECT_GT(dev.samples, 2000u);
+  EXPECT_LE(dev.max_mm, 0.1) << to_string(r.prefit->model);
+  EXPECT_LE(dev.max_curvature, 2.0 * dev.true_max_curvature);
+  EXPECT_LT(r.prefit->loo_rms_mm, 0.05) << "the markers predict each other to a few hundredths";
+}
+
+INSTANTIATE_TEST_SUITE_P(Shapes, SynthSparseInterior,
+                         ::testing::Combine(::testing::ValuesIn(synth::shape_names()),
+                                            ::testing::Values(std::uint64_t{4}, std::uint64_t{23})),
+                         [](const auto& info) {
+                           return std::get<0>(info.param) + "_seed" + std::to_string(std::get<1>(info.param));
+                         });
+
+// The same 150 markers spread over the whole part, the blend inside their hull: they fall 10 mm
+// apart across a 20 mm ramp 13-24 mm high, and the fit is a millimetre or more off there; the
+// markers' own leave-one-out error (reported as fit.prefit.loo_rms_mm) shows it without the truth.
+class SynthSparseAcrossTheBlend : public SynthParts, public ::testing::WithParamInterface<std::string> {};
+
+TEST_P(SynthSparseAcrossTheBlend, LeaveOneOutErrorTellsTheMarkersAreTooFew) {
+  const test::Shape shape = synth_part(GetParam());
+  const PointCloud cloud = markers(shape, kPartLengthX / 2, kPartLengthY / 2, 15, 10, 0.01, 4);
+  Options o;
+  o.fit.fold.max_slope_deg = 90;  // the blend's flanks: measure, do not refuse
+  const Result r = fit_point_cloud(cloud, o);
+  ASSERT_TRUE(r.prefit.has_value());
+  const auto dev = truth(r.fit.surface, shape);
+  EXPECT_GT(dev.max_mm, 0.5);
+  EXPECT_GT(r.prefit->loo_rms_mm, 0.3) << "max " << dev.max_mm;
+}
+
+INSTANTIATE_TEST_SUITE_P(Shapes, SynthSparseAcrossTheBlend, ::testing::ValuesIn(synth::shape_names()),
+                         [](const auto& info) { return info.param; });
+
+// Done-when 1 on synth's parts: 100 000 points, 0.01 mm noise, 30 x 30 cubic net with knots placed
+// by the shape (--knots adaptive): within 0.01 mm RMS of the truth (measured 0.0036-0.0061; with
+// uniform knots 0.0126-0.0164, docs/fitsurf.md "Accuracy").
+class SynthDense : public SynthParts, public ::testing::WithParamInterface<std::string> {};
+
+TEST_P(SynthDense, HundredThousandNoisyPointsWithin10MicrometresAt30x30) {
+  const test::Shape shape = synth_part(GetParam());
+  PointCloud cloud;
+  cloud.points_mm = test::sample(shape, 100000, 0.01, 21);
+  Options o;
+  o.fit.poles_u = o.fit.poles_v = 30;
+  o.fit.knots = KnotPlacement::Adaptive;
+  const Result r = fit_point_cloud(cloud, o);
+  const auto dev = truth(r.fit.surface, shape);
+  EXPECT_GT(dev.samples, 10000u);
+  EXPECT_LE(dev.rms_mm, 0.01) << "max " << dev.max_mm;
+}
+
+INSTANTIATE_TEST_SUITE_P(Shapes, SynthDense, ::testing::ValuesIn(synth::shape_names()),
+                         [](const auto& info) { return info.param; });
+
+}  // namespace
+}  // namespace photomill::fitsurf
