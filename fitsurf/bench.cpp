@@ -1,7 +1,7 @@
 // fitsurf_bench: speed and accuracy figures of fitsurf's method on the analytic test shapes
 // (fitsurf/test_shapes.hpp), printed as a table for docs/fitsurf.md. Not a test: it asserts
 // nothing; scripts/bench-fitsurf.sh runs it with the machine load alongside.
-//   fitsurf_bench [--threads N] [--repeat R] [--quick] [--section speed|accuracy|outliers|robust|sparse]
+//   fitsurf_bench [--threads N] [--repeat R] [--quick] [--section speed|accuracy|outliers|robust|sparse|layouts|synth]
 //   fitsurf_bench --write-cloud FILE.ply|FILE.xyz [--points N] [--shape NAME]   (input for CLI timing)
 //   fitsurf_bench --truth SAMPLES.xyz [--shape NAME]   (deviation of surface samples from the truth,
 //                                                      for scripts/bench-fitsurf-freecad.sh)
@@ -20,6 +20,7 @@
 #include "fitsurf/outline.hpp"
 #include "fitsurf/parallel.hpp"
 #include "fitsurf/report.hpp"
+#include "fitsurf/synth_shapes.hpp"
 #include "fitsurf/test_shapes.hpp"
 #include "formats/error.hpp"
 #include "formats/log.hpp"
@@ -90,7 +91,7 @@ int main(int argc, char** argv) {
     else if (!std::strcmp(argv[k], "--shape") && k + 1 < argc) shape_name = argv[++k];
     else {
       std::fprintf(stderr,
-                   "usage: fitsurf_bench [--threads N] [--repeat R] [--quick] [--section speed|accuracy|outliers|robust|sparse]\n"
+                   "usage: fitsurf_bench [--threads N] [--repeat R] [--quick] [--section speed|accuracy|outliers|robust|sparse|layouts|synth]\n"
                    "       fitsurf_bench --write-cloud FILE.ply|FILE.xyz [--points N] [--shape NAME]\n"
                    "       fitsurf_bench --truth SAMPLES.xyz [--shape NAME]\n");
       return 2;
@@ -314,6 +315,97 @@ int main(int argc, char** argv) {
                       kernel.c_str(), r.seconds);
         }
       }
+      }
+    }
+  }
+  }
+  if (want("layouts")) {
+  // The sparse criterion over many marker layouts (seeds 1-24; --quick: 1-6): 150 markers, default
+  // options, the largest distance from the truth inside the points' hull, and the same at least
+  // 2.5 mm inside it (a quarter of the spacing: away from the edge between two outer markers).
+  // fitsurf's shapes with the markers over the whole rectangle; synth's parts with them over the
+  // interior (where synth puts a part's markers) and over the whole part (the blend in the hull).
+  std::printf("\n150 markers, default options, %d layouts each: max distance from the truth inside the hull, mm\n",
+              quick ? 6 : 24);
+  std::printf("%-8s %-12s %8s %8s %8s %12s %10s %8s\n", "shape", "markers", "median", "worst", ">0.1", "worst>=2.5mm",
+              "curv ratio", "s/fit");
+  struct Case {
+    test::Shape shape;
+    const char* where;
+    bool interior;
+  };
+  std::vector<Case> cases;
+  for (const auto& s : test::shapes()) cases.push_back({s, "whole", false});
+  for (const auto& name : synth::shape_names()) cases.push_back({test::synth_part(name), "synth inside", true});
+  for (const auto& name : synth::shape_names()) cases.push_back({test::synth_part(name), "synth whole", false});
+  for (const auto& c : cases) {
+    std::vector<double> worst;
+    double inner = 0, ratio = 0, seconds = 0;
+    const int layouts = quick ? 6 : 24;
+    for (int seed = 1; seed <= layouts; ++seed) {
+      const auto pts = c.interior ? test::synth_interior_markers(c.shape, static_cast<std::uint64_t>(seed))
+                                  : test::sample_grid(c.shape, 15, 10, 3.0, 0.01, static_cast<std::uint64_t>(seed));
+      std::vector<Eigen::Vector2d> xy;
+      for (const auto& p : pts) xy.push_back(p.head<2>());
+      const std::vector<Eigen::Vector2d> hull = convex_hull(xy);
+      Options o;
+      o.fit.threads = threads;
+      o.fit.fold.max_slope_deg = 90;  // report, do not refuse
+      const Result r = fit_point_cloud(cloud_of(pts), o);
+      seconds += r.seconds;
+      const BSplineSurface& surf = r.fit.surface;
+      const auto dev = test::compare_with_truth(surf, c.shape, 120, [&](const Eigen::Vector2d& uv) {
+        return surf.boundary_uv.empty() || point_in_polygon(surf.boundary_uv, uv);
+      });
+      worst.push_back(dev.max_mm);
+      ratio = std::max(ratio, dev.max_curvature / dev.true_max_curvature);
+      // The same (u,v) samples as compare_with_truth's.
+      for (int a = 0; a < 120; ++a) {
+        for (int b = 0; b < 120; ++b) {
+          const Eigen::Vector2d uv((a + 0.5) / 120, (b + 0.5) / 120);
+          if (!surf.boundary_uv.empty() && !point_in_polygon(surf.boundary_uv, uv)) continue;
+          const Eigen::Vector3d x = surface_point(surf, uv.x(), uv.y());
+          const Eigen::Vector2d q = x.head<2>();
+          if (!point_in_polygon(hull, q)) continue;
+          double edge = INFINITY;
+          for (std::size_t i = 0; i < hull.size(); ++i) edge = std::min(edge, segment_distance(q, hull[i], hull[(i + 1) % hull.size()]));
+          if (edge >= 2.5) inner = std::max(inner, test::distance_to_truth(c.shape, x));
+        }
+      }
+    }
+    std::vector<double> sorted = worst;
+    std::sort(sorted.begin(), sorted.end());
+    const auto over = std::count_if(worst.begin(), worst.end(), [](double w) { return w > 0.1; });
+    std::printf("%-8s %-12s %8.3f %8.3f %5td/%-2d %12.3f %10.2f %8.2f\n", c.shape.name.c_str(), c.where,
+                sorted[sorted.size() / 2], sorted.back(), over, layouts, inner, ratio, seconds / layouts);
+  }
+  }
+  if (want("synth")) {
+  // Done-when 1 on synth's own parts: 100 000 points, 0.01 mm noise, uniform and adaptive knots.
+  std::printf("\nsynth's parts, 100 000 points, 0.01 mm noise, --robust none: truth RMS / max mm (plane only -> corrected)\n");
+  std::printf("%-8s %-8s %-9s %20s %20s %8s\n", "part", "net", "knots", "plane only", "corrected", "s");
+  for (const auto& name : synth::shape_names()) {
+    const test::Shape shape = test::synth_part(name);
+    const PointCloud cloud = cloud_of(test::sample(shape, 100000, 0.01, 21));
+    for (int net : {30, 40}) {
+      for (KnotPlacement knots : {KnotPlacement::Uniform, KnotPlacement::Adaptive}) {
+        if (net == 40 && knots == KnotPlacement::Adaptive) continue;
+        test::TruthDeviation dev[2];
+        double seconds = 0;
+        for (int correct = 0; correct < 2; ++correct) {
+          Options o;
+          o.fit.poles_u = o.fit.poles_v = net;
+          o.fit.knots = knots;
+          o.fit.robust = RobustLoss::None;
+          o.fit.threads = threads;
+          o.fit.parameter_correction = correct == 1;
+          const Result r = fit_point_cloud(cloud, o);
+          dev[correct] = truth(r.fit, shape);
+          seconds = r.seconds;
+        }
+        std::printf("%-8s %3dx%-4d %-9s %9.4f / %-8.3f %9.4f / %-8.3f %8.2f\n", name.c_str(), net, net,
+                    knots == KnotPlacement::Adaptive ? "adaptive" : "uniform", dev[0].rms_mm, dev[0].max_mm,
+                    dev[1].rms_mm, dev[1].max_mm, seconds);
       }
     }
   }

@@ -13,35 +13,15 @@
 
 #include "fitsurf/fitsurf.hpp"
 #include "fitsurf/outline.hpp"
-#include "fitsurf/test_shapes.hpp"
+#include "fitsurf/synth_shapes.hpp"
 #include "formats/log.hpp"
-#include "tests/synth/height_field.hpp"
 
 namespace photomill::fitsurf {
 namespace {
 
-constexpr double kPartLengthX = 150, kPartLengthY = 100, kPartHeight = 30, kBlend = 20;  // mm, synth's defaults
-
-test::Shape synth_part(const std::string& name) {
-  const synth::HeightField h = synth::make_shape(name, kPartLengthX, kPartLengthY, kPartHeight, kBlend);
-  return {name, [h](double x, double y) { return h.height_mm(x, y); }};
-}
-
-// An nx x ny grid over [-hx, hx] x [-hy, hy], each point jittered by up to 0.3 of the spacing, with
-// Gaussian noise of sigma_mm on each coordinate.
-PointCloud markers(const test::Shape& shape, double hx, double hy, int nx, int ny, double sigma_mm,
-                   std::uint64_t seed) {
-  test::Rng rng(seed);
-  const double dx = 2 * hx / nx, dy = 2 * hy / ny, jitter = 0.3 * std::min(dx, dy);
+PointCloud cloud_of(std::vector<Eigen::Vector3d> pts) {
   PointCloud c;
-  for (int i = 0; i < nx; ++i) {
-    for (int j = 0; j < ny; ++j) {
-      const double x = -hx + (i + 0.5) * dx + rng.uniform(-jitter, jitter);
-      const double y = -hy + (j + 0.5) * dy + rng.uniform(-jitter, jitter);
-      c.points_mm.push_back(Eigen::Vector3d(x, y, shape.f(x, y)) +
-                            sigma_mm * Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()));
-    }
-  }
+  c.points_mm = std::move(pts);
   return c;
 }
 
@@ -65,8 +45,8 @@ class SynthSparseInterior : public SynthParts, public ::testing::WithParamInterf
 
 TEST_P(SynthSparseInterior, WithinATenthOfAMillimetreWithoutWiggles) {
   const auto& [name, seed] = GetParam();
-  const test::Shape shape = synth_part(name);
-  const PointCloud cloud = markers(shape, kPartLengthX / 2 - kBlend, kPartLengthY / 2 - kBlend, 15, 10, 0.01, seed);
+  const test::Shape shape = test::synth_part(name);
+  const PointCloud cloud = cloud_of(test::synth_interior_markers(shape, seed));
   const Result r = fit_point_cloud(cloud, Options{});
   ASSERT_TRUE(r.prefit.has_value());
   const auto dev = truth(r.fit.surface, shape);
@@ -89,8 +69,8 @@ INSTANTIATE_TEST_SUITE_P(Shapes, SynthSparseInterior,
 class SynthSparseAcrossTheBlend : public SynthParts, public ::testing::WithParamInterface<std::string> {};
 
 TEST_P(SynthSparseAcrossTheBlend, LeaveOneOutErrorTellsTheMarkersAreTooFew) {
-  const test::Shape shape = synth_part(GetParam());
-  const PointCloud cloud = markers(shape, kPartLengthX / 2, kPartLengthY / 2, 15, 10, 0.01, 4);
+  const test::Shape shape = test::synth_part(GetParam());
+  const PointCloud cloud = cloud_of(test::sample_grid(shape, 15, 10, 3.0, 0.01, 4));
   Options o;
   o.fit.fold.max_slope_deg = 90;  // the blend's flanks: measure, do not refuse
   const Result r = fit_point_cloud(cloud, o);
@@ -109,9 +89,8 @@ INSTANTIATE_TEST_SUITE_P(Shapes, SynthSparseAcrossTheBlend, ::testing::ValuesIn(
 class SynthDense : public SynthParts, public ::testing::WithParamInterface<std::string> {};
 
 TEST_P(SynthDense, HundredThousandNoisyPointsWithin10MicrometresAt30x30) {
-  const test::Shape shape = synth_part(GetParam());
-  PointCloud cloud;
-  cloud.points_mm = test::sample(shape, 100000, 0.01, 21);
+  const test::Shape shape = test::synth_part(GetParam());
+  const PointCloud cloud = cloud_of(test::sample(shape, 100000, 0.01, 21));
   Options o;
   o.fit.poles_u = o.fit.poles_v = 30;
   o.fit.knots = KnotPlacement::Adaptive;

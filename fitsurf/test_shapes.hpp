@@ -107,22 +107,29 @@ inline std::vector<Eigen::Vector3d> sample(const Shape& s, std::size_t n, double
   return pts;
 }
 
-// Marker-like sparse points: a jittered nx x ny grid over the rectangle (margin kept).
-inline std::vector<Eigen::Vector3d> sample_grid(const Shape& s, int nx, int ny, double jitter_mm, double sigma_mm,
-                                                std::uint64_t seed) {
+// Marker-like sparse points: a jittered nx x ny grid over [x_min, x_max] x [y_min, y_max], each
+// cell's centre moved by up to jitter_mm in x and y, plus Gaussian noise as sample().
+inline std::vector<Eigen::Vector3d> sample_grid_over(const Shape& s, double x_min, double x_max, double y_min, double y_max,
+                                                     int nx, int ny, double jitter_mm, double sigma_mm, std::uint64_t seed) {
   Rng rng(seed);
   std::vector<Eigen::Vector3d> pts;
-  const double hx = (kXMax - kXMin) / nx, hy = (kYMax - kYMin) / ny;
+  const double hx = (x_max - x_min) / nx, hy = (y_max - y_min) / ny;
   for (int i = 0; i < nx; ++i) {
     for (int j = 0; j < ny; ++j) {
-      const double x = kXMin + (i + 0.5) * hx + rng.uniform(-jitter_mm, jitter_mm);
-      const double y = kYMin + (j + 0.5) * hy + rng.uniform(-jitter_mm, jitter_mm);
+      const double x = x_min + (i + 0.5) * hx + rng.uniform(-jitter_mm, jitter_mm);
+      const double y = y_min + (j + 0.5) * hy + rng.uniform(-jitter_mm, jitter_mm);
       Eigen::Vector3d p(x, y, s.f(x, y));
       if (sigma_mm > 0) p += sigma_mm * Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal());
       pts.push_back(p);
     }
   }
   return pts;
+}
+
+// The same over the whole rectangle (margin kept: half a cell).
+inline std::vector<Eigen::Vector3d> sample_grid(const Shape& s, int nx, int ny, double jitter_mm, double sigma_mm,
+                                                std::uint64_t seed) {
+  return sample_grid_over(s, kXMin, kXMax, kYMin, kYMax, nx, ny, jitter_mm, sigma_mm, seed);
 }
 
 // Gradient and Hessian of f by central differences (step 1e-3 mm: truncation ~1e-7 relative,
