@@ -60,18 +60,9 @@ void print_times(const char* what, const Times& t) {
               t.wall[t.wall.size() / 2], t.cpu[t.cpu.size() / 2], t.wall.size());
 }
 
-PointCloud cloud_of(const std::vector<Eigen::Vector3d>& pts) {
-  PointCloud c;
-  c.points_mm = pts;
-  return c;
-}
+using test::cloud_of;
 
-test::TruthDeviation truth(const FitResult& fit, const test::Shape& s) {
-  const auto& b = fit.surface.boundary_uv;
-  return test::compare_with_truth(fit.surface, s, 150, [&](const Eigen::Vector2d& uv) {
-    return b.empty() ? true : point_in_polygon(b, uv);
-  });
-}
+test::TruthDeviation truth(const FitResult& fit, const test::Shape& s) { return test::truth_inside_outline(fit.surface, s, 150); }
 
 }  // namespace
 
@@ -354,9 +345,7 @@ int main(int argc, char** argv) {
       const Result r = fit_point_cloud(cloud_of(pts), o);
       seconds += r.seconds;
       const BSplineSurface& surf = r.fit.surface;
-      const auto dev = test::compare_with_truth(surf, c.shape, 120, [&](const Eigen::Vector2d& uv) {
-        return surf.boundary_uv.empty() || point_in_polygon(surf.boundary_uv, uv);
-      });
+      const auto dev = test::truth_inside_outline(surf, c.shape);
       worst.push_back(dev.max_mm);
       ratio = std::max(ratio, dev.max_curvature / dev.true_max_curvature);
       // The same (u,v) samples as compare_with_truth's.

@@ -10,6 +10,7 @@
 
 #include "fitsurf/fitsurf.hpp"
 #include "fitsurf/outline.hpp"
+#include "fitsurf/synth_shapes.hpp"
 #include "fitsurf/test_shapes.hpp"
 #include "formats/bspline.hpp"
 #include "formats/error.hpp"
@@ -18,18 +19,10 @@
 namespace photomill::fitsurf {
 namespace {
 
-PointCloud cloud_of(std::vector<Eigen::Vector3d> pts) {
-  PointCloud c;
-  c.points_mm = std::move(pts);
-  return c;
-}
+using test::cloud_of;
 
 // Deviation from the truth inside the fitted surface's outline.
-test::TruthDeviation truth(const BSplineSurface& s, const test::Shape& shape) {
-  return test::compare_with_truth(s, shape, 120, [&](const Eigen::Vector2d& uv) {
-    return s.boundary_uv.empty() || point_in_polygon(s.boundary_uv, uv);
-  });
-}
+test::TruthDeviation truth(const BSplineSurface& s, const test::Shape& shape) { return test::truth_inside_outline(s, shape); }
 
 class FitsurfFit : public ::testing::Test {
 protected:
@@ -66,13 +59,15 @@ INSTANTIATE_TEST_SUITE_P(Shapes, DenseAccuracy,
                            return std::get<0>(info.param) + "_order" + std::to_string(std::get<1>(info.param));
                          });
 
-// synth's parts meet the plate through a 20 mm blend (the demo part): uniform knots 5.6 mm apart
-// leave 0.0166 mm RMS at 30x30, knots placed by the shape of a first fit (adaptive_knots) bring it
-// within 0.01 mm there, and keep every other shape within it (docs/fitsurf.md, "Accuracy").
+// synth's parts meet the plate through a 20 mm blend (the demo part is synth's bumps; synth_saddle,
+// synth_wave, synth_dome are its other parts, synth::make_shape itself): uniform knots 5.6 mm
+// apart leave 0.012-0.017 mm RMS at 30x30, knots placed by the shape of a first fit
+// (adaptive_knots) bring them within 0.01 mm (0.004-0.0065), and keep every other shape within it
+// (docs/fitsurf.md, "Accuracy"). Done-when 1 on synth's true surfaces.
 class DenseAdaptive : public FitsurfFit, public ::testing::WithParamInterface<std::string> {};
 
 TEST_P(DenseAdaptive, HundredThousandNoisyPointsWithin10MicrometresAt30x30) {
-  const test::Shape shape = test::shape(GetParam());
+  const test::Shape shape = test::shape_or_synth_part(GetParam());
   const PointCloud cloud = cloud_of(test::sample(shape, 100000, 0.01, 21));
   Options o;
   o.fit.poles_u = o.fit.poles_v = 30;
@@ -87,7 +82,9 @@ TEST_P(DenseAdaptive, HundredThousandNoisyPointsWithin10MicrometresAt30x30) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Shapes, DenseAdaptive, ::testing::Values("bumps", "saddle", "wave", "dome", "steep", "ridge", "demo"));
+INSTANTIATE_TEST_SUITE_P(Shapes, DenseAdaptive,
+                         ::testing::Values("bumps", "saddle", "wave", "dome", "steep", "ridge", "demo", "synth_saddle",
+                                           "synth_wave", "synth_dome"));
 
 // Adaptive knots crowd where the shape bends: on the demo part, the outer 20 mm of each side (the
 // blend, 27 % of the length) get more of the knots than uniform ones would give them; the knots

@@ -1,8 +1,8 @@
 // fitsurf against synth's own parts (tests/synth/height_field.hpp, the shapes synth renders and
 // the demo chain reconstructs): h = w f, f the kind of shape, w the 20 mm blend down to the plate.
-// Issue #7's Done-when on "synth's true surfaces": 100 000 noisy points within 0.01 mm RMS with a
-// 30 x 30 net (adaptive knots), and ~150 marker points within 0.1 mm inside their hull where synth
-// puts the part's markers, on the part's interior inside the blend (synth::make_scene, tests/synth/scene.cpp). With
+// Issue #7's sparse Done-when on "synth's true surfaces" (the dense one: fit_test DenseAdaptive's
+// synth_* cases): ~150 marker points within 0.1 mm inside their hull where synth puts a part's
+// markers, over the interior inside the blend (synth::make_scene, tests/synth/scene.cpp). With
 // markers across the blend as well, 150 points cannot pin the blend down, and the kernel prefit's
 // leave-one-out error says so (docs/fitsurf.md, "Sparse points").
 #include <cstdint>
@@ -19,17 +19,9 @@
 namespace photomill::fitsurf {
 namespace {
 
-PointCloud cloud_of(std::vector<Eigen::Vector3d> pts) {
-  PointCloud c;
-  c.points_mm = std::move(pts);
-  return c;
-}
+using test::cloud_of;
 
-test::TruthDeviation truth(const BSplineSurface& s, const test::Shape& shape) {
-  return test::compare_with_truth(s, shape, 120, [&](const Eigen::Vector2d& uv) {
-    return s.boundary_uv.empty() || point_in_polygon(s.boundary_uv, uv);
-  });
-}
+test::TruthDeviation truth(const BSplineSurface& s, const test::Shape& shape) { return test::truth_inside_outline(s, shape); }
 
 class SynthParts : public ::testing::Test {
 protected:
@@ -81,26 +73,6 @@ TEST_P(SynthSparseAcrossTheBlend, LeaveOneOutErrorTellsTheMarkersAreTooFew) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Shapes, SynthSparseAcrossTheBlend, ::testing::ValuesIn(synth::shape_names()),
-                         [](const auto& info) { return info.param; });
-
-// Done-when 1 on synth's parts: 100 000 points, 0.01 mm noise, 30 x 30 cubic net with knots placed
-// by the shape (--knots adaptive): within 0.01 mm RMS of the truth (measured 0.0036-0.0061; with
-// uniform knots 0.0126-0.0164, docs/fitsurf.md "Accuracy").
-class SynthDense : public SynthParts, public ::testing::WithParamInterface<std::string> {};
-
-TEST_P(SynthDense, HundredThousandNoisyPointsWithin10MicrometresAt30x30) {
-  const test::Shape shape = test::synth_part(GetParam());
-  const PointCloud cloud = cloud_of(test::sample(shape, 100000, 0.01, 21));
-  Options o;
-  o.fit.poles_u = o.fit.poles_v = 30;
-  o.fit.knots = KnotPlacement::Adaptive;
-  const Result r = fit_point_cloud(cloud, o);
-  const auto dev = truth(r.fit.surface, shape);
-  EXPECT_GT(dev.samples, 10000u);
-  EXPECT_LE(dev.rms_mm, 0.01) << "max " << dev.max_mm;
-}
-
-INSTANTIATE_TEST_SUITE_P(Shapes, SynthDense, ::testing::ValuesIn(synth::shape_names()),
                          [](const auto& info) { return info.param; });
 
 }  // namespace

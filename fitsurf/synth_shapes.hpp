@@ -17,6 +17,12 @@ inline Shape synth_part(const std::string& name) {
   return {name, [h](double x, double y) { return h.height_mm(x, y); }};
 }
 
+// "synth_NAME": synth's part NAME; anything else: test::shape(NAME).
+inline Shape shape_or_synth_part(const std::string& name) {
+  const std::string prefix = "synth_";
+  return name.rfind(prefix, 0) == 0 ? synth_part(name.substr(prefix.size())) : shape(name);
+}
+
 // 150 marker-like points (15 x 10, jittered by 0.3 of the smaller spacing, 0.01 mm noise) where
 // synth puts a part's markers (synth::make_scene): over the interior inside the blend, 110 x 60 mm.
 inline std::vector<Eigen::Vector3d> synth_interior_markers(const Shape& s, std::uint64_t seed) {

@@ -17,7 +17,9 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
+#include "fitsurf/outline.hpp"
 #include "formats/bspline.hpp"
+#include "formats/point_cloud.hpp"
 
 namespace photomill::fitsurf::test {
 
@@ -230,6 +232,19 @@ inline TruthDeviation compare_with_truth(const BSplineSurface& s, const Shape& s
   }
   t.rms_mm = t.samples ? std::sqrt(sum2 / static_cast<double>(t.samples)) : 0.0;
   return t;
+}
+
+// The same inside the surface's outline (its boundary_uv; everywhere when it has none).
+inline TruthDeviation truth_inside_outline(const BSplineSurface& s, const Shape& shape, int n = 120) {
+  return compare_with_truth(s, shape, n, [&](const Eigen::Vector2d& uv) {
+    return s.boundary_uv.empty() || point_in_polygon(s.boundary_uv, uv);
+  });
+}
+
+inline PointCloud cloud_of(std::vector<Eigen::Vector3d> pts) {
+  PointCloud c;
+  c.points_mm = std::move(pts);
+  return c;
 }
 
 }  // namespace photomill::fitsurf::test
