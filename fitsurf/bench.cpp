@@ -25,6 +25,7 @@
 #include "formats/error.hpp"
 #include "formats/log.hpp"
 #include "formats/point_cloud.hpp"
+#include "tests/synth/height_field.hpp"
 
 namespace {
 
@@ -348,10 +349,11 @@ int main(int argc, char** argv) {
       const auto dev = test::truth_inside_outline(surf, c.shape);
       worst.push_back(dev.max_mm);
       ratio = std::max(ratio, dev.max_curvature / dev.true_max_curvature);
-      // The same (u,v) samples as compare_with_truth's.
-      for (int a = 0; a < 120; ++a) {
-        for (int b = 0; b < 120; ++b) {
-          const Eigen::Vector2d uv((a + 0.5) / 120, (b + 0.5) / 120);
+      // The same (u,v) samples as truth_inside_outline's.
+      constexpr int n = test::kTruthGrid;
+      for (int a = 0; a < n; ++a) {
+        for (int b = 0; b < n; ++b) {
+          const Eigen::Vector2d uv((a + 0.5) / n, (b + 0.5) / n);
           if (!surf.boundary_uv.empty() && !point_in_polygon(surf.boundary_uv, uv)) continue;
           const Eigen::Vector3d x = surface_point(surf, uv.x(), uv.y());
           const Eigen::Vector2d q = x.head<2>();

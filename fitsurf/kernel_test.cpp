@@ -120,8 +120,9 @@ INSTANTIATE_TEST_SUITE_P(Shapes, Choice, ::testing::Values("bumps", "steep", "ri
 
 // A fold z = 20 + 8 tanh(d / 12), d the distance across a line at angle a, is flat along the
 // line: the anisotropic kernel is chosen with its long axis along it (the nearest of the
-// directions tried, 45 degrees apart) and predicts the points at least twice as well as any
-// isotropic one; a round bump keeps the isotropic kernel; max_aspect 1 tries none.
+// directions tried, 45 degrees apart) and predicts the points at least ten times better than any
+// isotropic one (22-160x measured; KernelOptions::anisotropy_gain asks for 2x); a round bump keeps
+// the isotropic kernel; max_aspect 1 tries none.
 class Fold : public ::testing::TestWithParam<double> {};
 
 TEST_P(Fold, LongAxisAlongTheFold) {
@@ -137,7 +138,7 @@ TEST_P(Fold, LongAxisAlongTheFold) {
   for (const auto& c : k.candidates()) {
     if (c.model.aspect == 1) iso = std::min(iso, c.loo_rms_mm);
   }
-  EXPECT_LT(2 * k.loo_rms_mm(), iso);
+  EXPECT_LT(10 * k.loo_rms_mm(), iso);
   KernelOptions isotropic;
   isotropic.max_aspect = 1;
   const KernelInterpolant round = fit_kernel(s.xy, s.z, isotropic);

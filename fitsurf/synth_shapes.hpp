@@ -3,7 +3,12 @@
 // plate, 30 mm high (synth's defaults; the demo part is its "bumps"). Links photomill_synth.
 #pragma once
 
+#include <algorithm>
+#include <cstdint>
 #include <string>
+#include <vector>
+
+#include <Eigen/Core>
 
 #include "fitsurf/test_shapes.hpp"
 #include "tests/synth/height_field.hpp"

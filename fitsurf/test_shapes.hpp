@@ -1,16 +1,19 @@
 // Ground truth for fitsurf's tests and benchmark: analytic height fields z = f(x, y) over
 // 150 x 100 mm ([-75, 75] x [-50, 50]), mostly 20-40 mm high - sums of Gaussian bumps, a tanh
-// saddle, a wave, a dome (the kinds of tests/synth's shapes: synth::make_shape could replace
-// them once synth is in), a narrow bump (the most curved) and a cylindrical ridge (the
-// steepest) - plus samplers with Gaussian noise and the deviation of a fitted
-// surface from the truth. Header-only; deterministic (SplitMix64 + Box-Muller).
+// saddle, a wave, a dome (the kinds of tests/synth's shapes, without synth's blend down to the
+// plate), a narrow bump (the most curved), a cylindrical ridge (the steepest) and the demo part
+// (synth's bumps written out, so that these tests need not link synth; synth's own parts:
+// synth_shapes.hpp) - plus samplers with Gaussian noise and the deviation of a fitted surface
+// from the truth. Header-only; deterministic (SplitMix64 + Box-Muller).
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <functional>
 #include <numbers>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -234,8 +237,10 @@ inline TruthDeviation compare_with_truth(const BSplineSurface& s, const Shape& s
   return t;
 }
 
-// The same inside the surface's outline (its boundary_uv; everywhere when it has none).
-inline TruthDeviation truth_inside_outline(const BSplineSurface& s, const Shape& shape, int n = 120) {
+// The same inside the surface's outline (its boundary_uv; everywhere when it has none), over
+// kTruthGrid x kTruthGrid samples unless told.
+constexpr int kTruthGrid = 120;
+inline TruthDeviation truth_inside_outline(const BSplineSurface& s, const Shape& shape, int n = kTruthGrid) {
   return compare_with_truth(s, shape, n, [&](const Eigen::Vector2d& uv) {
     return s.boundary_uv.empty() || point_in_polygon(s.boundary_uv, uv);
   });
