@@ -71,7 +71,7 @@ struct KernelOptions {
   // otherwise wins by a few per cent and extrapolates worse. Measured on 150 markers, 24 layouts
   // each (docs/fitsurf.md): smooth parts without a preferred direction up to 1.49x (one wave
   // layout's 1.47x, a fluke of the length grid, took an anisotropic kernel 0.154 mm off the
-  // truth where the isotropic one was 0.05 mm), the ridge 2.3x and more. max_aspect 1: none.
+  // truth where the isotropic one is 0.102 mm), the ridge 2.3x and more. max_aspect 1: none.
   double max_aspect = 8;
   double aspect_step = 2;
   int directions = 4;
