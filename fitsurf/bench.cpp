@@ -312,13 +312,14 @@ int main(int argc, char** argv) {
   }
   }
   if (want("layouts")) {
-  // The sparse criterion over many marker layouts (seeds 1-24; --quick: 1-6): 150 markers, default
+  // The sparse criterion over many marker layouts (seeds 1-24): 150 markers, default
   // options, the largest distance from the truth inside the points' hull, and the same at least
   // 2.5 mm inside it (a quarter of the spacing: away from the edge between two outer markers).
   // fitsurf's shapes with the markers over the whole rectangle; synth's parts with them over the
   // interior (where synth puts a part's markers) and over the whole part (the blend in the hull).
+  constexpr int layouts = 24;
   std::printf("\n150 markers, default options, %d layouts each: max distance from the truth inside the hull, mm\n",
-              quick ? 6 : 24);
+              layouts);
   std::printf("%-8s %-12s %8s %8s %8s %12s %10s %8s\n", "shape", "markers", "median", "worst", ">0.1", "worst>=2.5mm",
               "curv ratio", "s/fit");
   struct Case {
@@ -333,7 +334,6 @@ int main(int argc, char** argv) {
   for (const auto& c : cases) {
     std::vector<double> worst;
     double inner = 0, ratio = 0, seconds = 0;
-    const int layouts = quick ? 6 : 24;
     for (int seed = 1; seed <= layouts; ++seed) {
       const auto pts = c.interior ? test::synth_interior_markers(c.shape, static_cast<std::uint64_t>(seed))
                                   : test::sample_grid(c.shape, 15, 10, 3.0, 0.01, static_cast<std::uint64_t>(seed));
@@ -358,9 +358,7 @@ int main(int argc, char** argv) {
           const Eigen::Vector3d x = surface_point(surf, uv.x(), uv.y());
           const Eigen::Vector2d q = x.head<2>();
           if (!point_in_polygon(hull, q)) continue;
-          double edge = INFINITY;
-          for (std::size_t i = 0; i < hull.size(); ++i) edge = std::min(edge, segment_distance(q, hull[i], hull[(i + 1) % hull.size()]));
-          if (edge >= 2.5) inner = std::max(inner, test::distance_to_truth(c.shape, x));
+          if (boundary_distance(hull, q) >= 2.5) inner = std::max(inner, test::distance_to_truth(c.shape, x));
         }
       }
     }

@@ -502,8 +502,6 @@ FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& 
   space.q = q;
   space.nu = o.poles_u;
   space.nv = o.poles_v;
-  space.U = knots_for(o.knots, uv, o.poles_u, p, 0);
-  space.V = knots_for(o.knots, uv, o.poles_v, q, 1);
   if (o.knots == KnotPlacement::Adaptive) {
     // The first fit, with uniform knots and the same options, shows where the shape needs them.
     FitOptions first = o;
@@ -511,6 +509,9 @@ FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& 
     const FitResult f = fit_net(points, first, point_weights);
     space.U = adaptive_knots(f.local_surface, 0, o.poles_u, o.adaptive_knot_ratio, o.adaptive_knot_floor_mm);
     space.V = adaptive_knots(f.local_surface, 1, o.poles_v, o.adaptive_knot_ratio, o.adaptive_knot_floor_mm);
+  } else {
+    space.U = knots_for(o.knots, uv, o.poles_u, p, 0);
+    space.V = knots_for(o.knots, uv, o.poles_v, q, 1);
   }
   NetSolver solver(space, o, r.box.length_u_mm(), r.box.length_v_mm());
   const bool reweight = o.robust != RobustLoss::None &&

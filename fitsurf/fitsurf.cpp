@@ -175,11 +175,7 @@ FitResult kernel_prefit_fit(const std::vector<Eigen::Vector3d>& points, const Fi
   if (!(extent.minCoeff() > 0)) throw GeometryError("the kernel prefit's points span no area in their plane");
   const double step = std::max(extent.x() / nu, extent.y() / nv);
   auto near_hull = [&](const Eigen::Vector2d& x) {
-    if (hull.size() >= 3 && point_in_polygon(hull, x)) return true;
-    for (std::size_t i = 0; i < hull.size(); ++i) {
-      if (segment_distance(x, hull[i], hull[(i + 1) % hull.size()]) <= step) return true;
-    }
-    return false;
+    return (hull.size() >= 3 && point_in_polygon(hull, x)) || boundary_distance(hull, x) <= step;
   };
   std::vector<Eigen::Vector3d> samples;
   for (int i = 0; i <= nu; ++i) {

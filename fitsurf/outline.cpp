@@ -2,6 +2,7 @@
 #include "fitsurf/outline.hpp"
 
 #include <algorithm>
+#include <limits>
 #include <cmath>
 #include <cstdint>
 #include <stdexcept>
@@ -362,6 +363,12 @@ double segment_distance(const Eigen::Vector2d& x, const Eigen::Vector2d& a, cons
   const double len2 = ab.squaredNorm();
   const double t = len2 > 0 ? std::clamp((x - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
   return (a + t * ab - x).norm();
+}
+
+double boundary_distance(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& x) {
+  double d = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < polygon.size(); ++i) d = std::min(d, segment_distance(x, polygon[i], polygon[(i + 1) % polygon.size()]));
+  return d;
 }
 
 }  // namespace photomill::fitsurf

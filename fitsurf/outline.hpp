@@ -43,6 +43,7 @@ std::vector<Eigen::Vector2d> convex_hull(std::vector<Eigen::Vector2d> points);  
 double signed_area(const std::vector<Eigen::Vector2d>& polygon);                 // > 0 if CCW
 bool point_in_polygon(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& x);
 double segment_distance(const Eigen::Vector2d& x, const Eigen::Vector2d& a, const Eigen::Vector2d& b);  // to segment ab
+double boundary_distance(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& x);  // to its closed edge
 bool is_simple_polygon(const std::vector<Eigen::Vector2d>& polygon);
 
 }  // namespace photomill::fitsurf

@@ -22,8 +22,6 @@ namespace {
 
 using test::cloud_of;
 
-test::TruthDeviation truth(const BSplineSurface& s, const test::Shape& shape) { return test::truth_inside_outline(s, shape); }
-
 class SynthParts : public ::testing::Test {
 protected:
   void SetUp() override { log::set_level(log::Level::Quiet); }
@@ -42,7 +40,7 @@ TEST_P(SynthSparseInterior, WithinATenthOfAMillimetreWithoutWiggles) {
   const PointCloud cloud = cloud_of(test::synth_interior_markers(shape, seed));
   const Result r = fit_point_cloud(cloud, Options{});
   ASSERT_TRUE(r.prefit.has_value());
-  const auto dev = truth(r.fit.surface, shape);
+  const auto dev = test::truth_inside_outline(r.fit.surface, shape);
   EXPECT_GT(dev.samples, 2000u);
   EXPECT_LE(dev.max_mm, 0.1) << to_string(r.prefit->model);
   EXPECT_LE(dev.max_curvature, 2.0 * dev.true_max_curvature);
@@ -70,7 +68,7 @@ TEST_P(SynthSparseAcrossTheBlend, LeaveOneOutErrorTellsTheMarkersAreTooFew) {
   o.fit.fold.max_slope_deg = 90;  // the blend's flanks: measure, do not refuse
   const Result r = fit_point_cloud(cloud, o);
   ASSERT_TRUE(r.prefit.has_value());
-  const auto dev = truth(r.fit.surface, shape);
+  const auto dev = test::truth_inside_outline(r.fit.surface, shape);
   EXPECT_GT(dev.max_mm, 0.5);
   EXPECT_GT(r.prefit->loo_rms_mm, 0.3) << "max " << dev.max_mm;
 }
