@@ -4,7 +4,7 @@
 #include <map>
 #include <set>
 
-#include "detect/boards.hpp"
+#include "geometry/board.hpp"
 #include "formats/error.hpp"
 #include "formats/tool.hpp"
 
@@ -91,18 +91,18 @@ std::vector<ControlPoint> load_control(const CalibCli& c) {
     }
     return all;
   }
-  detect::BoardSpec spec;
+  geometry::BoardSpec spec;
   spec.square_mm = c.square_mm;
   if (!c.chessboard.empty()) {
-    spec.kind = detect::BoardKind::Chessboard;
-    std::tie(spec.cols, spec.rows) = detect::parse_grid(c.chessboard, "--chessboard");
+    spec.kind = geometry::BoardKind::Chessboard;
+    std::tie(spec.cols, spec.rows) = geometry::parse_grid(c.chessboard, "--chessboard");
   } else if (!c.charuco.empty()) {
-    spec.kind = detect::BoardKind::Charuco;
-    std::tie(spec.cols, spec.rows) = detect::parse_grid(c.charuco, "--charuco");
+    spec.kind = geometry::BoardKind::Charuco;
+    std::tie(spec.cols, spec.rows) = geometry::parse_grid(c.charuco, "--charuco");
   } else {
     throw UsageError("give the control points: --control FILE, --chessboard COLSxROWS or --charuco COLSxROWS");
   }
-  return detect::board_control_points(spec);
+  return geometry::board_control_points(spec);
 }
 
 void check_observations(const CalibCli& c, const std::vector<Observation>& observations,
@@ -125,7 +125,7 @@ void check_observations(const CalibCli& c, const std::vector<Observation>& obser
 
 cv::Size resolve_image_size(const CalibCli& c, const std::vector<Observation>& observations) {
   if (!c.image_size.empty()) {
-    const auto [w, h] = detect::parse_grid(c.image_size, "--image-size");
+    const auto [w, h] = geometry::parse_grid(c.image_size, "--image-size");
     if (w <= 0 || h <= 0) throw UsageError("--image-size: width and height must be positive");
     return {w, h};
   }

@@ -29,10 +29,16 @@ namespace {
 
 // R(r) as a matrix, so a view's points are rotated without recomputing sin and cos per point.
 Eigen::Matrix3d rotation(const std::array<double, kPose>& pose) {
-  const Eigen::Vector3d r(pose[0], pose[1], pose[2]);
-  const double theta = r.norm();
-  if (theta < 1e-15) return Eigen::Matrix3d::Identity();
-  return Eigen::AngleAxisd(theta, r / theta).toRotationMatrix();
+  return geometry::rotation_of({pose[0], pose[1], pose[2], pose[3], pose[4], pose[5]});
+}
+
+// Pixel of the camera point pc (the residual's arithmetic, with R built once per view).
+Eigen::Vector2d pixel(const Parameters& p, const ModelOptions& model, const Eigen::Vector3d& pc) {
+  double k[geometry::kIntrinsicCount];
+  to_model_block(p.intrinsics.data(), p.distortion.data(), model.fix_aspect_ratio, k);
+  Eigen::Vector2d uv;
+  geometry::distort_to_pixel(model_shape(model), k, pc.x() / pc.z(), pc.y() / pc.z(), &uv.x(), &uv.y());
+  return uv;
 }
 
 }  // namespace
@@ -44,43 +50,28 @@ std::vector<Eigen::Vector2d> view_residuals(const View& view, const Parameters& 
   std::vector<Eigen::Vector2d> out(view.world_mm.size());
   for (std::size_t i = 0; i < view.world_mm.size(); ++i) {
     const Eigen::Vector3d pc = R * view.world_mm[i] + t;
-    double uv[2];
-    project_camera_point(p.intrinsics.data(), p.distortion.data(), model.fix_aspect_ratio, pc.data(), uv);
-    out[i] = Eigen::Vector2d(uv[0], uv[1]) - view.observed_px[i];
+    out[i] = pixel(p, model, pc) - view.observed_px[i];
   }
   return out;
 }
 
 double sum_squared_error(const std::vector<View>& views, const Parameters& p, const ModelOptions& model) {
-  // The simplex evaluates this millions of times: the same arithmetic as project_camera_point,
-  // written out in scalars, with R built once per view. With k4 = k5 = k6 = 0 the rational
-  // denominator is exactly 1, so skipping it changes no bit of the result.
-  const double fx = p.intrinsics[0];
-  const double fy = model.fix_aspect_ratio ? p.intrinsics[0] : p.intrinsics[1];
-  const double cx = p.intrinsics[2];
-  const double cy = p.intrinsics[3];
-  const auto& d = p.distortion;
-  const bool rational = d[5] != 0 || d[6] != 0 || d[7] != 0;
+  // The simplex evaluates this millions of times: the block is built once, R once per view.
+  double k[geometry::kIntrinsicCount];
+  to_model_block(p.intrinsics.data(), p.distortion.data(), model.fix_aspect_ratio, k);
+  const geometry::ModelShape shape = model_shape(model);
   double sse = 0;
   for (std::size_t v = 0; v < views.size(); ++v) {
     const Eigen::Matrix3d R = rotation(p.poses[v]);
-    const double* t = p.poses[v].data() + 3;
+    const Eigen::Vector3d t(p.poses[v][3], p.poses[v][4], p.poses[v][5]);
     const auto& world = views[v].world_mm;
     const auto& observed = views[v].observed_px;
     for (std::size_t i = 0; i < world.size(); ++i) {
-      const Eigen::Vector3d& X = world[i];
-      const double zc = R(2, 0) * X.x() + R(2, 1) * X.y() + R(2, 2) * X.z() + t[2];
-      const double x = (R(0, 0) * X.x() + R(0, 1) * X.y() + R(0, 2) * X.z() + t[0]) / zc;
-      const double y = (R(1, 0) * X.x() + R(1, 1) * X.y() + R(1, 2) * X.z() + t[1]) / zc;
-      const double r2 = x * x + y * y;
-      const double r4 = r2 * r2;
-      const double r6 = r4 * r2;
-      double radial = 1 + d[0] * r2 + d[1] * r4 + d[4] * r6;
-      if (rational) radial /= 1 + d[5] * r2 + d[6] * r4 + d[7] * r6;
-      const double xd = x * radial + 2 * d[2] * x * y + d[3] * (r2 + 2 * x * x);
-      const double yd = y * radial + d[2] * (r2 + 2 * y * y) + 2 * d[3] * x * y;
-      const double du = fx * xd + cx - observed[i].x();
-      const double dv = fy * yd + cy - observed[i].y();
+      const Eigen::Vector3d pc = R * world[i] + t;
+      double u = 0, w = 0;
+      geometry::distort_to_pixel(shape, k, pc.x() / pc.z(), pc.y() / pc.z(), &u, &w);
+      const double du = u - observed[i].x();
+      const double dv = w - observed[i].y();
       sse += du * du + dv * dv;
     }
   }

@@ -10,6 +10,8 @@
 #include <Eigen/Core>
 
 #include "formats/tables.hpp"
+#include "geometry/camera_model.hpp"
+#include "geometry/rotation.hpp"
 
 namespace photomill::calib {
 
@@ -52,47 +54,20 @@ struct View {
   std::vector<Eigen::Vector2d> observed_px;
 };
 
-// OpenCV's projection (calib3d docs, "Detailed description"): with (x', y') = (X_c/Z_c, Y_c/Z_c),
-// r^2 = x'^2 + y'^2,
-//   x'' = x' (1 + k1 r^2 + k2 r^4 + k3 r^6) / (1 + k4 r^2 + k5 r^4 + k6 r^6) + 2 p1 x'y' + p2 (r^2 + 2x'^2)
-//   y'' = y' (same radial factor) + p1 (r^2 + 2y'^2) + 2 p2 x'y'
-//   u = fx x'' + cx,  v = fy y'' + cy    (OpenCV pixel convention).
+// calib's blocks in the layout of photomill's one camera model (geometry/camera_model.hpp, whose
+// distort_to_pixel is OpenCV's projection): k = [fx, fy (= fx with fix_aspect_ratio), cx, cy,
+// k1 k2 p1 p2 k3 k4 k5 k6, 0...]. The rational denominator is evaluated only for the rational
+// model (k4..k6 are held at 0 otherwise, so skipping it is exact).
 template <typename T>
-void project_camera_point(const T* intrinsics, const T* d, bool fix_aspect_ratio, const T* p_cam, T* uv) {
-  const T x = p_cam[0] / p_cam[2];
-  const T y = p_cam[1] / p_cam[2];
-  const T r2 = x * x + y * y;
-  const T r4 = r2 * r2;
-  const T r6 = r4 * r2;
-  const T radial = (T(1) + d[0] * r2 + d[1] * r4 + d[4] * r6) / (T(1) + d[5] * r2 + d[6] * r4 + d[7] * r6);
-  const T xd = x * radial + T(2) * d[2] * x * y + d[3] * (r2 + T(2) * x * x);
-  const T yd = y * radial + d[2] * (r2 + T(2) * y * y) + T(2) * d[3] * x * y;
-  const T fy = fix_aspect_ratio ? intrinsics[0] : intrinsics[1];
-  uv[0] = intrinsics[0] * xd + intrinsics[2];
-  uv[1] = fy * yd + intrinsics[3];
+void to_model_block(const T* intrinsics, const T* distortion, bool fix_aspect_ratio, T* k) {
+  for (int i = 0; i < geometry::kIntrinsicCount; ++i) k[i] = T(0.0);
+  k[geometry::kFx] = intrinsics[0];
+  k[geometry::kFy] = fix_aspect_ratio ? intrinsics[0] : intrinsics[1];
+  k[geometry::kCx] = intrinsics[2];
+  k[geometry::kCy] = intrinsics[3];
+  for (int i = 0; i < kDistortion; ++i) k[geometry::kDistortionSlot[static_cast<std::size_t>(i)]] = distortion[i];
 }
-
-// Rotates by the angle-axis vector r (Rodrigues' formula), the convention of ceres/rotation.h and
-// cv::Rodrigues; a first-order form near zero keeps derivatives finite.
-template <typename T>
-void angle_axis_rotate(const T* r, const T* p, T* out) {
-  const T theta2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-  const T cross[3] = {r[1] * p[2] - r[2] * p[1], r[2] * p[0] - r[0] * p[2], r[0] * p[1] - r[1] * p[0]};
-  if (theta2 > T(1e-30)) {
-    using std::cos;
-    using std::sin;
-    using std::sqrt;
-    const T theta = sqrt(theta2);
-    const T c = cos(theta);
-    const T s = sin(theta);
-    const T w[3] = {r[0] / theta, r[1] / theta, r[2] / theta};
-    const T wp[3] = {cross[0] / theta, cross[1] / theta, cross[2] / theta};
-    const T dot = (w[0] * p[0] + w[1] * p[1] + w[2] * p[2]) * (T(1) - c);
-    for (int i = 0; i < 3; ++i) out[i] = p[i] * c + wp[i] * s + w[i] * dot;
-  } else {
-    for (int i = 0; i < 3; ++i) out[i] = p[i] + cross[i];
-  }
-}
+inline geometry::ModelShape model_shape(const ModelOptions& model) { return {0, model.rational, false, false}; }
 
 // Residual of one observation: r = project(K, d, R X + t) - (u, v), px. Parameter blocks:
 // intrinsics[4], distortion[8], pose[6] (layout above). Used by Ceres (autodiff) and, with
@@ -100,18 +75,17 @@ void angle_axis_rotate(const T* r, const T* p, T* out) {
 struct ReprojectionResidual {
   Eigen::Vector3d world_mm;
   Eigen::Vector2d observed_px;
-  bool fix_aspect_ratio = false;
+  ModelOptions model;
 
   template <typename T>
   bool operator()(const T* intrinsics, const T* distortion, const T* pose, T* residual) const {
     const T X[3] = {T(world_mm.x()), T(world_mm.y()), T(world_mm.z())};
     T p[3];
-    angle_axis_rotate(pose, X, p);
-    p[0] += pose[3];
-    p[1] += pose[4];
-    p[2] += pose[5];
+    geometry::transform_point(pose, X, p);
+    T k[geometry::kIntrinsicCount];
+    to_model_block(intrinsics, distortion, model.fix_aspect_ratio, k);
     T uv[2];
-    project_camera_point(intrinsics, distortion, fix_aspect_ratio, p, uv);
+    geometry::distort_to_pixel(model_shape(model), k, p[0] / p[2], p[1] / p[2], &uv[0], &uv[1]);
     residual[0] = uv[0] - T(observed_px.x());
     residual[1] = uv[1] - T(observed_px.y());
     return true;

@@ -88,7 +88,7 @@ RefineStats refine_lm(const std::vector<View>& views, const ModelOptions& model,
   for (std::size_t v = 0; v < views.size(); ++v) {
     for (std::size_t i = 0; i < views[v].world_mm.size(); ++i) {
       problem.AddResidualBlock(
-          new ResidualCost(new ReprojectionResidual{views[v].world_mm[i], views[v].observed_px[i], model.fix_aspect_ratio}),
+          new ResidualCost(new ReprojectionResidual{views[v].world_mm[i], views[v].observed_px[i], model}),
           nullptr, p.intrinsics.data(), p.distortion.data(), p.poses[v].data());
     }
   }
@@ -141,7 +141,7 @@ Eigen::MatrixXd packed_jacobian(const std::vector<View>& views, const ModelOptio
   Eigen::Index row = 0;
   for (std::size_t v = 0; v < views.size(); ++v) {
     for (std::size_t i = 0; i < views[v].world_mm.size(); ++i, row += 2) {
-      const ResidualCost cost(new ReprojectionResidual{views[v].world_mm[i], views[v].observed_px[i], model.fix_aspect_ratio});
+      const ResidualCost cost(new ReprojectionResidual{views[v].world_mm[i], views[v].observed_px[i], model});
       double r[2];
       Eigen::Matrix<double, 2, kIntrinsics, Eigen::RowMajor> Ji;
       Eigen::Matrix<double, 2, kDistortion, Eigen::RowMajor> Jd;
@@ -335,7 +335,7 @@ Uncertainty estimate_uncertainty(const std::vector<View>& views, const ModelOpti
     Eigen::MatrixXd Acv = Eigen::MatrixXd::Zero(nc, kPose);
     Eigen::Matrix<double, kPose, kPose> Avv = Eigen::Matrix<double, kPose, kPose>::Zero();
     for (std::size_t i = 0; i < views[v].world_mm.size(); ++i) {
-      const ResidualCost cost(new ReprojectionResidual{views[v].world_mm[i], views[v].observed_px[i], model.fix_aspect_ratio});
+      const ResidualCost cost(new ReprojectionResidual{views[v].world_mm[i], views[v].observed_px[i], model});
       double r[2];
       Eigen::Matrix<double, 2, kIntrinsics, Eigen::RowMajor> Ji;
       Eigen::Matrix<double, 2, kDistortion, Eigen::RowMajor> Jd;

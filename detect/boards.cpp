@@ -2,12 +2,9 @@
 #include "detect/boards.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
-#include <exception>
 #include <mutex>
 #include <set>
-#include <thread>
 
 #include <opencv2/aruco/charuco.hpp>
 #include <opencv2/calib3d.hpp>
@@ -16,6 +13,7 @@
 
 #include "formats/error.hpp"
 #include "formats/image.hpp"
+#include "geometry/parallel.hpp"
 
 namespace photomill::detect {
 namespace {
@@ -98,18 +96,6 @@ void detect_charuco(const cv::Mat& grey, const BoardSpec& spec, const BoardDetec
 
 }  // namespace
 
-std::pair<int, int> parse_grid(const std::string& text, const std::string& what) {
-  const auto x = text.find_first_of("xX");
-  auto parse = [&](const std::string& s) {
-    if (s.empty() || s.size() > 4 || !std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; })) {
-      throw UsageError(what + ": expected COLSxROWS such as 9x6, got '" + text + "'");
-    }
-    return std::stoi(s);
-  };
-  if (x == std::string::npos) throw UsageError(what + ": expected COLSxROWS such as 9x6, got '" + text + "'");
-  return {parse(text.substr(0, x)), parse(text.substr(x + 1))};
-}
-
 const std::vector<std::string>& aruco_dictionary_names() {
   static const std::vector<std::string> names{
       "DICT_4X4_50",         "DICT_4X4_100",        "DICT_4X4_250",        "DICT_4X4_1000",
@@ -129,17 +115,8 @@ int aruco_dictionary_id(const std::string& name) {
 }
 
 void validate_board(const BoardSpec& spec) {
-  if (!(spec.square_mm > 0) || !std::isfinite(spec.square_mm)) {
-    throw UsageError("--square-mm must be a positive number");
-  }
-  if (spec.kind == BoardKind::Chessboard) {
-    if (spec.cols < 2 || spec.rows < 2) throw UsageError("a chessboard needs at least 2x2 inner corners");
-    return;
-  }
-  if (spec.cols < 2 || spec.rows < 2) throw UsageError("a ChArUco board needs at least 2x2 squares");
-  if (!(spec.marker_mm > 0) || !(spec.marker_mm < spec.square_mm)) {
-    throw UsageError("--marker-mm must be positive and smaller than --square-mm");
-  }
+  geometry::validate_board_geometry(spec);
+  if (spec.kind == BoardKind::Chessboard) return;
   const int markers = spec.cols * spec.rows / 2;
   const auto dict = cv::aruco::getPredefinedDictionary(aruco_dictionary_id(spec.dictionary));
   if (dict->bytesList.rows < markers) {
@@ -147,27 +124,6 @@ void validate_board(const BoardSpec& spec) {
                      std::to_string(spec.cols) + "x" + std::to_string(spec.rows) + " ChArUco board needs " +
                      std::to_string(markers));
   }
-}
-
-int board_corner_count(const BoardSpec& spec) {
-  return spec.kind == BoardKind::Chessboard ? spec.cols * spec.rows : (spec.cols - 1) * (spec.rows - 1);
-}
-
-std::vector<ControlPoint> board_control_points(const BoardSpec& spec) {
-  // Only the geometry matters here (calib builds control points without marker or dictionary).
-  if (!(spec.square_mm > 0) || !std::isfinite(spec.square_mm)) throw UsageError("--square-mm must be a positive number");
-  if (spec.cols < 2 || spec.rows < 2) throw UsageError("a board needs at least 2x2 corners or squares");
-  // Chessboard: corner (c, r) at (c, r) * square, as OpenCV's calibration sample builds it.
-  // ChArUco: inner corner (c, r) at (c + 1, r + 1) * square (OpenCV 4.6 CharucoBoard::create).
-  const int per_row = spec.kind == BoardKind::Chessboard ? spec.cols : spec.cols - 1;
-  const int offset = spec.kind == BoardKind::Chessboard ? 0 : 1;
-  std::vector<ControlPoint> points;
-  for (int id = 0; id < board_corner_count(spec); ++id) {
-    const int c = id % per_row;
-    const int r = id / per_row;
-    points.push_back({id, Eigen::Vector3d((c + offset) * spec.square_mm, (r + offset) * spec.square_mm, 0), {}});
-  }
-  return points;
 }
 
 std::vector<std::string> expand_image_arguments(const std::vector<std::string>& args, std::istream& list) {
@@ -222,35 +178,18 @@ std::vector<ImageDetection> detect_boards(const std::vector<std::string>& images
                                           const BoardImageHook& on_pixels) {
   validate_board(spec);
   std::vector<ImageDetection> results(images.size());
-  std::vector<std::exception_ptr> errors(images.size());
-  std::atomic<std::size_t> next{0};
   std::mutex report_mutex;
-  auto worker = [&] {
-    for (std::size_t i = next++; i < images.size(); i = next++) {
-      try {
-        check_image_file(images[i]);
-        const cv::Mat grey = cv::imread(images[i], cv::IMREAD_GRAYSCALE);
-        if (grey.empty()) throw InputError(images[i], 0, "not a readable image");
-        results[i] = detect_board(grey, images[i], spec, options);
-        if (on_pixels) on_pixels(grey, results[i]);
-        if (on_image) {
-          const std::lock_guard<std::mutex> lock(report_mutex);
-          on_image(results[i]);
-        }
-      } catch (...) {
-        errors[i] = std::current_exception();
-      }
+  geometry::parallel_for(images.size(), options.jobs, [&](std::size_t i) {
+    check_image_file(images[i]);
+    const cv::Mat grey = cv::imread(images[i], cv::IMREAD_GRAYSCALE);
+    if (grey.empty()) throw InputError(images[i], 0, "not a readable image");
+    results[i] = detect_board(grey, images[i], spec, options);
+    if (on_pixels) on_pixels(grey, results[i]);
+    if (on_image) {
+      const std::lock_guard<std::mutex> lock(report_mutex);
+      on_image(results[i]);
     }
-  };
-  const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
-  const std::size_t jobs = std::min<std::size_t>(options.jobs > 0 ? options.jobs : cores, images.size());
-  std::vector<std::jthread> threads;
-  for (std::size_t t = 1; t < jobs; ++t) threads.emplace_back(worker);
-  worker();
-  threads.clear();  // joins
-  for (const auto& e : errors) {
-    if (e) std::rethrow_exception(e);
-  }
+  });
   return results;
 }
 

@@ -12,26 +12,16 @@
 #include <opencv2/core.hpp>
 
 #include "formats/tables.hpp"
+#include "geometry/board.hpp"
 
 namespace photomill::detect {
 
-enum class BoardKind { Chessboard, Charuco };
-
-// A planar calibration board. Board frame: origin at the corner of the first square (ChArUco) or
-// at inner corner 0 (chessboard), x along a row, y along a column, z = 0 on the board, mm.
-struct BoardSpec {
-  BoardKind kind = BoardKind::Chessboard;
-  // Chessboard: inner corners per row and per column (OpenCV's patternSize, "9x6").
-  // ChArUco: squares along x and along y (OpenCV's squaresX, squaresY, "5x7").
-  int cols = 0;
-  int rows = 0;
-  double square_mm = 1;                      // side of one chessboard square
-  double marker_mm = 0;                      // ChArUco: side of one marker (< square_mm)
-  std::string dictionary = "DICT_6X6_250";   // ChArUco: OpenCV's predefined dictionary name
-};
-
-// Parses "9x6" (also "9X6") into two positive integers; throws UsageError naming `what`.
-std::pair<int, int> parse_grid(const std::string& text, const std::string& what);
+// The board's geometry lives in geometry/board.hpp (calib needs it without detect).
+using geometry::BoardKind;
+using geometry::BoardSpec;
+using geometry::board_control_points;
+using geometry::board_corner_count;
+using geometry::parse_grid;
 
 // Checks a spec (sizes, dictionary name, marker < square, enough markers in the dictionary);
 // throws UsageError.
@@ -41,11 +31,6 @@ void validate_board(const BoardSpec& spec);
 // order. Throws UsageError for an unknown name.
 const std::vector<std::string>& aruco_dictionary_names();
 int aruco_dictionary_id(const std::string& name);
-
-// Number of corners of the board and their control points: point_id = corner index (row-major,
-// as OpenCV numbers them), xyz in the board frame, mm, z = 0.
-int board_corner_count(const BoardSpec& spec);
-std::vector<ControlPoint> board_control_points(const BoardSpec& spec);
 
 struct BoardDetectOptions {
   // Chessboard corner refinement (the settings of OpenCV's calibration sample and of the

@@ -91,8 +91,8 @@ int main(int argc, char** argv) {
         app.add_option("--charuco-max-window", options.charuco_max_half_window_px,
                        "ChArUco: largest cornerSubPix half-window, px")
             ->group("Boards")->capture_default_str()->check(CLI::Range(2, 50));
-        app.add_option("-j,--jobs", options.jobs, "Images processed in parallel (0: all cores)")
-            ->capture_default_str()->check(CLI::NonNegativeNumber);
+        app.add_option("-j,--threads,--jobs", options.jobs, "Images processed in parallel (0: all cores; --jobs: the old name)")
+            ->capture_default_str()->check(CLI::Range(0, 1024));
       },
       [&] {
         options.charuco_refine = !raw_charuco;

@@ -532,6 +532,10 @@ INSTANTIATE_TEST_SUITE_P(
                    2,
                    "excludes"},
         GoldenCase{"negative_cap_cell", {"--features", "{dir}/feat", "--cap-cell-px", "-1", "{page}"}, 2, "--cap-cell-px"},
+        GoldenCase{"threads_out_of_range", {"--aruco", "DICT_4X4_50", "--threads", "-1", "{page}"}, 2,
+                   "--threads: Value -1 not in range 0 to 1024"},
+        GoldenCase{"jobs_is_the_old_name_of_threads", {"--aruco", "DICT_4X4_50", "--jobs", "1025", "{page}"}, 2,
+                   "--threads: Value 1025 not in range 0 to 1024"},
         GoldenCase{"nothing_to_detect", {"{page}"}, 2, "--aruco DICT"},
         GoldenCase{"no_images", {"--aruco", "DICT_4X4_50"}, 2, "no images"}),
     [](const auto& info) { return info.param.name; });

@@ -18,7 +18,7 @@
 #include "fitsurf/fit.hpp"
 #include "fitsurf/fitsurf.hpp"
 #include "fitsurf/outline.hpp"
-#include "fitsurf/parallel.hpp"
+#include "geometry/parallel.hpp"
 #include "fitsurf/report.hpp"
 #include "fitsurf/synth_shapes.hpp"
 #include "fitsurf/test_shapes.hpp"
@@ -121,7 +121,7 @@ int main(int argc, char** argv) {
   }
   const auto want = [&](const char* section) { return only.empty() || only == section; };
   log::set_level(log::Level::Quiet);
-  std::printf("fitsurf_bench: %d worker threads (hardware: %d)\n\n", resolve_threads(threads), resolve_threads(0));
+  std::printf("fitsurf_bench: %d worker threads (hardware: %d)\n\n", geometry::thread_count(threads), geometry::thread_count(0));
 
   // Speed 1: 1 000 000 points, 40x40 cubic, one pass (no parameter correction, no reweighting).
   if (want("speed")) {

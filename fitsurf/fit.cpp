@@ -15,7 +15,7 @@
 #include "fitsurf/normal_equations.hpp"
 #include "fitsurf/numbers.hpp"
 #include "fitsurf/outline.hpp"
-#include "fitsurf/parallel.hpp"
+#include "geometry/parallel.hpp"
 #include "formats/bspline.hpp"
 #include "formats/error.hpp"
 #include "formats/log.hpp"
@@ -82,7 +82,7 @@ LocalResiduals local_residuals(const std::vector<Eigen::Vector2d>& uv, const std
   LocalResiduals r;
   r.deviation_mm.resize(n);
   r.scale_mm.resize(n);
-  parallel_for(n, worker_count(n, threads, 4096), [&](std::size_t b, std::size_t end, int) {
+  geometry::parallel_blocks(n, threads, 4096, [&](std::size_t b, std::size_t end, int) {
     std::vector<double> near;
     for (std::size_t k = b; k < end; ++k) {
       const std::size_t c = cell_of(uv[k]);
@@ -237,7 +237,7 @@ private:
 void parameter_residuals(const BSplineSurface& s, const std::vector<Eigen::Vector3d>& pts,
                          const std::vector<Eigen::Vector2d>& uv, std::vector<double>& d, int threads) {
   d.resize(pts.size());
-  parallel_for(pts.size(), worker_count(pts.size(), threads, 512), [&](std::size_t b, std::size_t e, int) {
+  geometry::parallel_blocks(pts.size(), threads, 512, [&](std::size_t b, std::size_t e, int) {
     for (std::size_t k = b; k < e; ++k) {
       const BasisRow bu = basis_row(s.num_poles_u - 1, s.degree_u, uv[k].x(), s.knots_u);
       const BasisRow bv = basis_row(s.num_poles_v - 1, s.degree_v, uv[k].y(), s.knots_v);
@@ -489,7 +489,7 @@ FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& 
   r.frame = parameter_frame(points, o.plane, o.frame);
   if (is_flat(r.frame, o.frame)) log::info("the points are flat (a plane fits them): the surface will be a plane");
   std::vector<Eigen::Vector3d> local(points.size());
-  parallel_for(points.size(), worker_count(points.size(), o.threads), [&](std::size_t b, std::size_t e, int) {
+  geometry::parallel_blocks(points.size(), o.threads, 2048, [&](std::size_t b, std::size_t e, int) {
     for (std::size_t k = b; k < e; ++k) local[k] = r.frame.to_local(points[k]);
   });
   r.box = parameter_box(local);

@@ -10,7 +10,7 @@
 
 #include <Eigen/LU>
 
-#include "fitsurf/parallel.hpp"
+#include "geometry/parallel.hpp"
 #include "formats/error.hpp"
 
 namespace photomill::fitsurf {
@@ -257,7 +257,7 @@ KernelInterpolant fit_kernel(const std::vector<Eigen::Vector2d>& xy_mm, const st
   const Prepared p = prepare(xy_mm, z_mm);
   std::vector<KernelCandidate> cand;
   auto evaluate = [&](std::size_t from) {
-    parallel_for(cand.size() - from, worker_count(cand.size() - from, options.threads, 1),
+    geometry::parallel_blocks(cand.size() - from, options.threads, 1,
                  [&](std::size_t begin, std::size_t end, int) {
                    for (std::size_t i = from + begin; i < from + end; ++i) {
                      cand[i].loo_rms_mm = solve(p.nodes, z_mm, cand[i].model, p.scale, options.ridge).loo_rms;

@@ -7,7 +7,7 @@
 #include <numbers>
 #include <stdexcept>
 
-#include "fitsurf/parallel.hpp"
+#include "geometry/parallel.hpp"
 #include "formats/error.hpp"
 
 namespace photomill::fitsurf {
@@ -38,9 +38,9 @@ DataNormalEquations accumulate_normal_equations(const SplineSpace& space,
     throw std::invalid_argument("accumulate_normal_equations: sizes differ");
   }
   const int p = space.p, q = space.q, nv = space.nv;
-  const int workers = worker_count(points.size(), threads);
+  const int workers = geometry::block_count(points.size(), threads, 2048);
   std::vector<DataNormalEquations> partial(static_cast<std::size_t>(workers), DataNormalEquations(space));
-  parallel_for(points.size(), workers, [&](std::size_t begin, std::size_t end, int worker) {
+  geometry::parallel_blocks(points.size(), threads, 2048, [&](std::size_t begin, std::size_t end, int worker) {
     DataNormalEquations& ne = partial[static_cast<std::size_t>(worker)];
     std::vector<double>& M = ne.matrix.values();
     const std::size_t stencil = static_cast<std::size_t>((p + 1) * (2 * q + 1));

@@ -5,7 +5,7 @@
 #include <cmath>
 
 #include "fitsurf/evaluate.hpp"
-#include "fitsurf/parallel.hpp"
+#include "geometry/parallel.hpp"
 #include "formats/bspline.hpp"
 
 namespace photomill::fitsurf {
@@ -70,7 +70,7 @@ void project_points(const BSplineSurface& surface, const std::vector<Eigen::Vect
                     std::vector<Eigen::Vector2d>& uv, std::vector<double>& signed_distance_mm,
                     const ProjectionOptions& options, int threads) {
   signed_distance_mm.resize(points.size());
-  parallel_for(points.size(), worker_count(points.size(), threads, 512), [&](std::size_t begin, std::size_t end, int) {
+  geometry::parallel_blocks(points.size(), threads, 512, [&](std::size_t begin, std::size_t end, int) {
     for (std::size_t k = begin; k < end; ++k) {
       const FootPoint fp = project_point(surface, points[k], uv[k], options);
       uv[k] = fp.uv;

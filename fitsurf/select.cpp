@@ -8,26 +8,10 @@
 
 #include "fitsurf/numbers.hpp"
 #include "formats/error.hpp"
+#include "geometry/random.hpp"
 
 namespace photomill::fitsurf {
 namespace {
-
-// SplitMix64 (Steele, Lea, Flood 2014): deterministic on every platform, unlike the standard
-// distributions.
-class Rng {
-public:
-  explicit Rng(std::uint64_t seed) : state_(seed) {}
-  std::uint64_t next() {
-    std::uint64_t x = (state_ += 0x9E3779B97F4A7C15ull);
-    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-    x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-    return x ^ (x >> 31);
-  }
-  std::size_t index(std::size_t n) { return static_cast<std::size_t>(next() % n); }
-
-private:
-  std::uint64_t state_;
-};
 
 // Least-squares plane of the points: through their centroid, normal = eigenvector of the
 // smallest eigenvalue of their covariance.
@@ -58,7 +42,7 @@ Plane dominant_plane(const std::vector<Eigen::Vector3d>& points, const std::vect
                      const SelectOptions& o) {
   const std::size_t n = indices.size();
   if (n < 3) throw GeometryError("too few points (" + std::to_string(n) + ") to look for a plane");
-  Rng rng(o.seed);
+  geometry::Rng rng(o.seed);
   std::vector<std::size_t> subset;
   if (n > o.ransac_sample_size) {
     subset.reserve(o.ransac_sample_size);

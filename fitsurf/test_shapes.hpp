@@ -21,6 +21,7 @@
 #include <Eigen/LU>
 
 #include "fitsurf/outline.hpp"
+#include "geometry/random.hpp"
 #include "formats/bspline.hpp"
 #include "formats/point_cloud.hpp"
 
@@ -77,25 +78,7 @@ inline Shape shape(const std::string& name) {
   return shapes().front();
 }
 
-class Rng {
-public:
-  explicit Rng(std::uint64_t seed) : state_(seed) {}
-  std::uint64_t next() {
-    std::uint64_t x = (state_ += 0x9E3779B97F4A7C15ull);
-    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-    x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-    return x ^ (x >> 31);
-  }
-  double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
-  double uniform(double a, double b) { return a + (b - a) * uniform(); }
-  double normal() {
-    const double u1 = 1.0 - uniform(), u2 = uniform();
-    return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * std::numbers::pi * u2);
-  }
-
-private:
-  std::uint64_t state_;
-};
+using geometry::Rng;
 
 constexpr double kXMin = -75, kXMax = 75, kYMin = -50, kYMax = 50;
 

@@ -6,7 +6,7 @@
 #include <limits>
 
 #include "fitsurf/numbers.hpp"
-#include "fitsurf/parallel.hpp"
+#include "geometry/parallel.hpp"
 #include "formats/error.hpp"
 #include "formats/log.hpp"
 
@@ -33,7 +33,7 @@ void cross_validate_fold(const std::vector<Eigen::Vector3d>& points, const FitOp
   for (std::size_t k = 0; k < points.size(); ++k) (fold_of(k, t.seed, t.folds) == f ? test : train).push_back(points[k]);
   const FitResult fit = fit_surface(train, o);
   std::vector<double> d(test.size());
-  parallel_for(test.size(), worker_count(test.size(), o.threads, 512), [&](std::size_t b, std::size_t e, int) {
+  geometry::parallel_blocks(test.size(), o.threads, 512, [&](std::size_t b, std::size_t e, int) {
     for (std::size_t k = b; k < e; ++k) {
       Eigen::Vector2d uv0 = fit.box.to_uv(fit.frame.to_local(test[k]));
       d[k] = project_point(fit.local_surface, fit.frame.to_local(test[k]), uv0, o.projection).signed_distance_mm;

@@ -81,7 +81,7 @@ void add_options(CLI::App& app, Cli& c) {
       ->group(lsm);
   app.add_option("--lsm-min-correlation", c.lsm.min_correlation, "Refuse an alignment whose windows correlate less")
       ->group(lsm)->capture_default_str()->check(CLI::Range(-1.0, 1.0));
-  app.add_option("-j,--jobs", o.jobs, "Image pairs matched in parallel (0: all cores)")
+  app.add_option("-j,--threads,--jobs", o.jobs, "Image pairs matched in parallel (0: all cores; --jobs: the old name)")
       ->capture_default_str()->check(CLI::Range(0, 1024));
 }
 

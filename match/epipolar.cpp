@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <limits>
 
 #include <Eigen/Dense>
 #include <opencv2/calib3d.hpp>
@@ -172,24 +173,16 @@ std::optional<RobustFit> estimate_fundamental(const std::vector<Eigen::Vector2d>
   return fit;
 }
 
-Undistorter::Undistorter(std::optional<Camera> camera) : camera_(std::move(camera)) {}
+Undistorter::Undistorter(const std::optional<Camera>& camera) {
+  if (camera) camera_ = geometry::to_camera_model(*camera, "camera");
+}
 
 std::vector<Eigen::Vector2d> Undistorter::apply(const std::vector<Eigen::Vector2d>& pixels) const {
-  if (!camera_ || pixels.empty()) return pixels;
-  cv::Mat K(3, 3, CV_64F), dist(1, static_cast<int>(camera_->distortion.size()), CV_64F);
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) K.at<double>(r, c) = camera_->camera_matrix(r, c);
-  }
-  for (std::size_t k = 0; k < camera_->distortion.size(); ++k) dist.at<double>(0, static_cast<int>(k)) = camera_->distortion[k];
-  std::vector<cv::Point2d> in, out;
-  for (const auto& p : pixels) in.emplace_back(p.x(), p.y());
-  // OpenCV's iterative inversion; 20 iterations, 1e-10: exact to far below a pixel for any
-  // distortion a calibration produces (the default 5 iterations leave ~0.01 px at the corners).
-  cv::undistortPoints(in, out, K, camera_->distortion.empty() ? cv::Mat() : dist, cv::noArray(), K,
-                      cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 20, 1e-10));
+  if (!camera_) return pixels;
   std::vector<Eigen::Vector2d> result;
-  result.reserve(out.size());
-  for (const auto& p : out) result.emplace_back(p.x, p.y);
+  result.reserve(pixels.size());
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (const auto& p : pixels) result.push_back(geometry::undistort_to_ideal_pixel(*camera_, p).value_or(Eigen::Vector2d(nan, nan)));
   return result;
 }
 

@@ -14,6 +14,7 @@
 
 #include "formats/camera.hpp"
 #include "formats/tables.hpp"
+#include "geometry/camera_model.hpp"
 
 namespace photomill::match {
 
@@ -49,15 +50,17 @@ std::optional<RobustFit> estimate_fundamental(const std::vector<Eigen::Vector2d>
                                               const std::vector<Eigen::Vector2d>& b, const RobustFitOptions& options);
 
 // Maps observed pixels to the pixels of the ideal pinhole camera with the same K (OpenCV's
-// undistortPoints with P = K), so that epipolar geometry holds; the identity without a camera.
+// undistortPoints with P = K; geometry's Newton inversion of the one camera model), so that
+// epipolar geometry holds; the identity without a camera. A pixel the distortion cannot be
+// inverted at (beyond a fold of the model) maps to NaN: callers leave such points out.
 class Undistorter {
 public:
-  explicit Undistorter(std::optional<Camera> camera = std::nullopt);
+  explicit Undistorter(const std::optional<Camera>& camera = std::nullopt);
   std::vector<Eigen::Vector2d> apply(const std::vector<Eigen::Vector2d>& pixels) const;
   bool active() const { return camera_.has_value(); }
 
 private:
-  std::optional<Camera> camera_;
+  std::optional<geometry::CameraModel> camera_;
 };
 
 }  // namespace photomill::match

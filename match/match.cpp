@@ -19,6 +19,7 @@
 #include <opencv2/flann.hpp>
 
 #include "formats/error.hpp"
+#include "geometry/parallel.hpp"
 
 namespace photomill::match {
 
@@ -100,33 +101,6 @@ struct ImageData {
   std::unique_ptr<cv::flann::Index> index;      // over `descriptors`
   FeatureGrid grid;                             // over `feature_ideal` (guided matching)
 };
-
-// Runs `work(k)` for k in [0, n) on `jobs` threads; rethrows the first exception.
-void parallel_for(std::size_t n, int jobs, const std::function<void(std::size_t)>& work) {
-  std::atomic<std::size_t> next{0};
-  std::atomic<bool> stop{false};
-  std::exception_ptr error;
-  std::mutex mutex;
-  auto worker = [&] {
-    for (std::size_t k = next++; k < n && !stop; k = next++) {
-      try {
-        work(k);
-      } catch (...) {
-        const std::lock_guard<std::mutex> lock(mutex);
-        if (!error) error = std::current_exception();
-        stop = true;
-      }
-    }
-  };
-  const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
-  const std::size_t threads = std::min<std::size_t>(jobs > 0 ? static_cast<std::size_t>(jobs) : cores, std::max<std::size_t>(n, 1));
-  {
-    std::vector<std::jthread> pool;
-    for (std::size_t t = 1; t < threads; ++t) pool.emplace_back(worker);
-    worker();
-  }
-  if (error) std::rethrow_exception(error);
-}
 
 // Nearest and second-nearest neighbours of every row of `query` in `index`: best index and the
 // ratio of the distances (FLANN's L2 gives squared distances).
@@ -360,7 +334,7 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
   // Undistort, and index the descriptors (in parallel over images).
   const Undistorter undistort(in.camera);
   say("indexing " + std::to_string(in.features.size()) + " feature sets");
-  parallel_for(n, o.jobs, [&](std::size_t i) {
+  geometry::parallel_for(n, o.jobs, [&](std::size_t i) {
     ImageData& d = data[i];
     d.coded_ideal = undistort.apply(d.coded_px);
     if (!d.features) return;
@@ -422,7 +396,7 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
   std::vector<PairWork> work(pairs.size());
   std::atomic<std::size_t> done{0};
   std::mutex say_mutex;
-  parallel_for(pairs.size(), o.jobs, [&](std::size_t k) {
+  geometry::parallel_for(pairs.size(), o.jobs, [&](std::size_t k) {
     const auto [ia, ib] = pairs[k];
     ImageData& a = data[ia];
     ImageData& b = data[ib];
@@ -433,6 +407,8 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
     for (std::size_t i = 0; i < a.coded_ids.size(); ++i) {
       const auto it = b.coded_index.find(a.coded_ids[i]);
       if (it == b.coded_index.end()) continue;
+      // (A point where the camera's distortion cannot be inverted is NaN: left out.)
+      if (!a.coded_ideal[i].allFinite() || !b.coded_ideal[it->second].allFinite()) continue;
       pa.push_back(a.coded_ideal[i]);
       pb.push_back(b.coded_ideal[it->second]);
     }
@@ -444,6 +420,10 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
     } else if (a.index && b.index) {
       matches = match_descriptors(a, b, o);
     }
+    std::erase_if(matches, [&](const FeatureMatch& m) {
+      return !a.feature_ideal[static_cast<std::size_t>(m.a)].allFinite() ||
+             !b.feature_ideal[static_cast<std::size_t>(m.b)].allFinite();
+    });
     w.report.feature_matches = static_cast<int>(matches.size());
     for (const auto& m : matches) {
       pa.push_back(a.feature_ideal[static_cast<std::size_t>(m.a)]);
@@ -613,7 +593,7 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
     if (o.refine) {
       say("least-squares matching of " + std::to_string(voted.size()) + " feature tracks");
       std::vector<std::map<std::string, std::size_t>> refused(voted.size());
-      parallel_for(voted.size(), o.jobs, [&](std::size_t k) {
+      geometry::parallel_for(voted.size(), o.jobs, [&](std::size_t k) {
         refined[k] = refine_track(voted[k], *o.refine, refused[k]);
       });
       for (const auto& r : refused) {

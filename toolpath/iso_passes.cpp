@@ -6,7 +6,7 @@
 #include <sstream>
 
 #include "formats/error.hpp"
-#include "toolpath/parallel.hpp"
+#include "geometry/parallel.hpp"
 
 namespace photomill::toolpath {
 namespace {
@@ -213,7 +213,7 @@ LineStep step_on_line(const BSplineSurface& s, const PassPlanOptions& o, double 
   constexpr std::size_t kChunk = 64;
   const std::size_t chunks = (ts.size() + kChunk - 1) / kChunk;
   std::vector<LineStep> partial(chunks);
-  parallel_for(chunks, thread_count(o.threads), [&](std::size_t c) {
+  geometry::parallel_for(chunks, geometry::thread_count(o.threads), [&](std::size_t c) {
     LineStep& out = partial[c];
     for (std::size_t k = c * kChunk; k < std::min(ts.size(), (c + 1) * kChunk); ++k) {
       const PassFrame f = curve.frame(ts[k]);

@@ -9,7 +9,7 @@
 
 #include "formats/error.hpp"
 #include "toolpath/forward_step.hpp"
-#include "toolpath/parallel.hpp"
+#include "geometry/parallel.hpp"
 
 namespace photomill::toolpath {
 namespace {
@@ -164,7 +164,7 @@ ToolpathResult generate_toolpath(const BSplineSurface& surface, const ToolpathOp
 
   // Steps 2, 3, 4 (and 7) on every piece, in parallel: each writes only its own slot.
   std::vector<MarchResult> marched(items.size());
-  parallel_for(items.size(), thread_count(o.threads), [&](std::size_t i) {
+  geometry::parallel_for(items.size(), geometry::thread_count(o.threads), [&](std::size_t i) {
     const WorkItem& item = items[i];
     const IsoCurve curve(surface, item.direction, item.w);
     marched[i] = march_interval(curve, item.t_from, item.t_to, forward, r,

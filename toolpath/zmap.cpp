@@ -7,7 +7,7 @@
 
 #include "formats/bspline.hpp"
 #include "formats/error.hpp"
-#include "toolpath/parallel.hpp"
+#include "geometry/parallel.hpp"
 
 namespace photomill::toolpath {
 namespace {
@@ -248,7 +248,7 @@ ZmapResult simulate_zmap(const BSplineSurface& surface, const ClData& cl, const 
   if (!(o.tool_radius_mm > 0)) throw UsageError("z-map tool radius must be > 0");
   const auto t_start = std::chrono::steady_clock::now();
   const double R = o.tool_radius_mm;
-  const int threads = thread_count(o.threads);
+  const int threads = geometry::thread_count(o.threads);
   const SurfaceInverter inv(surface);
   Eigen::Vector2d lo = inv.lo(), hi = inv.hi();
   if (o.window_min) lo = lo.cwiseMax(*o.window_min);
@@ -268,7 +268,7 @@ ZmapResult simulate_zmap(const BSplineSurface& surface, const ClData& cl, const 
   std::vector<double> zs(N, kInf);
   std::vector<float> nzs(N, 0.0f);
   std::vector<Eigen::Vector2d> uvs(N);
-  parallel_for(static_cast<std::size_t>(ny), threads, [&](std::size_t jj) {
+  geometry::parallel_for(static_cast<std::size_t>(ny), threads, [&](std::size_t jj) {
     const long j = static_cast<long>(jj);
     SurfaceInverter::Jacobian jac;
     bool have_guess = false;
@@ -293,7 +293,7 @@ ZmapResult simulate_zmap(const BSplineSurface& surface, const ClData& cl, const 
     }
   });
 
-  parallel_for(static_cast<std::size_t>(ny), threads, [&](std::size_t jj) {
+  geometry::parallel_for(static_cast<std::size_t>(ny), threads, [&](std::size_t jj) {
     const long j = static_cast<long>(jj);
     const auto z_at = [&](long i, long jn) {
       return i < 0 || jn < 0 || i >= nx || jn >= ny ? kInf : zs[static_cast<std::size_t>(jn) * nx + i];
@@ -334,7 +334,7 @@ ZmapResult simulate_zmap(const BSplineSurface& surface, const ClData& cl, const 
     const long j1 = std::min(ny - 1, static_cast<long>(std::floor((y1 - lo.y()) / o.cell_mm)));
     for (long b = j0 / kRowsPerBlock; j0 <= j1 && b <= j1 / kRowsPerBlock; ++b) block_segs[static_cast<std::size_t>(b)].push_back(static_cast<int>(s));
   }
-  parallel_for(blocks, threads, [&](std::size_t b) {
+  geometry::parallel_for(blocks, threads, [&](std::size_t b) {
     const long jb0 = static_cast<long>(b) * kRowsPerBlock, jb1 = std::min(ny - 1, jb0 + kRowsPerBlock - 1);
     const double R2 = R * R;
     for (int s : block_segs[b]) {

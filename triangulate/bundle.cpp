@@ -7,7 +7,7 @@
 #include <memory>
 #include <set>
 
-#include "triangulate/parallel.hpp"
+#include "geometry/parallel.hpp"
 #include "triangulate/residuals.hpp"
 
 namespace photomill::triangulate {
@@ -79,6 +79,7 @@ std::vector<int> constant_intrinsics(IntrinsicsRefinement level, int distortion_
     if (distortion_count >= 5) varying.insert(kK3);
     if (distortion_count >= 8) varying.insert({kK4, kK5, kK6});
     if (distortion_count >= 12) varying.insert({kS1, kS2, kS3, kS4});
+    if (distortion_count >= 14) varying.insert({kTauX, kTauY});
   }
   std::vector<int> constant;
   for (int i = 0; i < kIntrinsicCount; ++i) {
@@ -106,7 +107,7 @@ AdjustmentLayout adjustment_layout(const Scene& scene, const BundleSetup& setup,
   l.in_ba.assign(scene.tracks.size(), 0);
   l.in_bar.assign(scene.tracks.size(), 0);
   l.image_used.assign(scene.images.size(), 0);
-  parallel_for(scene.tracks.size(), threads, [&](std::size_t begin, std::size_t end) {
+  geometry::parallel_blocks(scene.tracks.size(), threads, 64, [&](std::size_t begin, std::size_t end, int) {
     for (std::size_t t = begin; t < end; ++t) {
       l.active[t] = scene.active_observations(t);
       l.in_ba[t] = in_adjustment(scene, t, l.active[t].size()) ? 1 : 0;
@@ -216,7 +217,7 @@ BundleSummary bundle_adjust(Scene& scene, const BundleSetup& setup, const Bundle
   so.function_tolerance = options.function_tolerance;
   so.gradient_tolerance = options.gradient_tolerance;
   so.parameter_tolerance = options.parameter_tolerance;
-  so.num_threads = thread_count(options.threads);
+  so.num_threads = geometry::thread_count(options.threads);
   so.logging_type = ceres::SILENT;
   so.minimizer_progress_to_stdout = false;
   ceres::Solver::Summary summary;

@@ -8,7 +8,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Dense>
 
-#include "triangulate/parallel.hpp"
+#include "geometry/parallel.hpp"
 
 namespace photomill::triangulate {
 namespace {
@@ -17,7 +17,7 @@ constexpr int kPoseJetSize = 6 + 3;
 constexpr int kFullJetSize = 6 + 3 + kIntrinsicCount;
 
 // Whitened reprojection residual r (2) and its Jacobian with respect to [pose 6 | point 3 |
-// intrinsics 16 (only when `with_intrinsics`)], by dual numbers (camera_model.hpp's project()).
+// intrinsics 18 (only when `with_intrinsics`)], by dual numbers (geometry/camera_model.hpp's project()).
 template <int N>
 bool observation_jacobian(const Scene& scene, const ObservationRef& ob, double inv_sigma,
                           Eigen::Matrix<double, 2, Eigen::Dynamic>& J, Eigen::Vector2d& r) {
@@ -273,7 +273,7 @@ PointUncertainty point_uncertainty(const Scene& scene, const BundleSetup& setup,
 
   // Pass 2: per-point marginal covariances.
   const double s0 = out.variance_factor;
-  parallel_for(scene.tracks.size(), options.threads, [&](std::size_t begin, std::size_t end) {
+  geometry::parallel_blocks(scene.tracks.size(), options.threads, 64, [&](std::size_t begin, std::size_t end, int) {
     for (std::size_t t = begin; t < end; ++t) {
       if (!layout.in_ba[t]) continue;
       if (!cols.variable[t]) {

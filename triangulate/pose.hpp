@@ -10,7 +10,6 @@
 
 #include <Eigen/Core>
 
-#include "triangulate/camera_model.hpp"
 #include "triangulate/scene.hpp"
 
 namespace photomill::triangulate {

@@ -16,7 +16,7 @@
 #include "formats/error.hpp"
 #include "formats/log.hpp"
 #include "formats/text.hpp"
-#include "triangulate/parallel.hpp"
+#include "geometry/parallel.hpp"
 
 namespace photomill::triangulate {
 namespace {
@@ -188,7 +188,7 @@ void Pipeline::start_incremental() {
     PoseBlock pose{};
   };
   std::vector<PairResult> results(candidates.size());
-  parallel_for(candidates.size(), o_.threads, [&](std::size_t begin, std::size_t end) {
+  geometry::parallel_blocks(candidates.size(), o_.threads, 64, [&](std::size_t begin, std::size_t end, int) {
     for (std::size_t c = begin; c < end; ++c) {
       const auto [a, b] = candidates[c].second;
       PairResult& res = results[c];
@@ -725,7 +725,7 @@ void Pipeline::finish(Reconstruction& r) {
   rep.loss = to_string(o_.bundle.loss);
   rep.loss_scale_px = o_.bundle.loss_scale_px;
   rep.refine_intrinsics = to_string(o_.bundle.refine_intrinsics);
-  rep.threads = thread_count(o_.threads);
+  rep.threads = geometry::thread_count(o_.threads);
   r.camera = to_camera(scene_.camera, input_.camera);
   if (o_.bundle.refine_intrinsics != IntrinsicsRefinement::None) {
     rep.refined_camera = {r.camera.fx(), r.camera.fy(), r.camera.cx(), r.camera.cy()};

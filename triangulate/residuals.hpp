@@ -7,7 +7,7 @@
 
 #include <ceres/ceres.h>
 
-#include "triangulate/camera_model.hpp"
+#include "triangulate/scene.hpp"
 
 namespace photomill::triangulate {
 
@@ -15,7 +15,7 @@ namespace photomill::triangulate {
 //   r = (pi(K, d; R(aa) X + t) - u) / sigma_px                               (2 values)
 // Parameters: pose[0..2] = angle-axis (rad), pose[3..5] = t (mm), cam_from_world;
 //             point[0..2] = X (mm, world).
-// pi is camera_model.hpp's project() (the paper's x_cam = R X + T, section 3.2, then OpenCV's
+// pi is geometry/camera_model.hpp's project() (the paper's x_cam = R X + T, section 3.2, then OpenCV's
 // distortion). A point behind the camera makes the evaluation fail (Ceres rejects the step).
 struct ReprojectionError {
   ReprojectionError(const CameraModel* camera, const Eigen::Vector2d& uv_px, double sigma_px)
@@ -42,8 +42,8 @@ struct ReprojectionError {
 
 // Reprojection error with the intrinsics as a parameter block (self-calibration).
 //   r = (pi(k; R(aa) X + t) - u) / sigma_px                                  (2 values)
-// Parameters: pose[0..5] and point[0..2] as above; intrinsics[0..15] in camera_model.hpp's
-// IntrinsicIndex layout (fx fy cx cy k1 k2 p1 p2 k3 k4 k5 k6 s1 s2 s3 s4); the skew is fixed.
+// Parameters: pose[0..5] and point[0..2] as above; intrinsics[0..17] in geometry/camera_model.hpp's
+// IntrinsicIndex layout (fx fy cx cy k1 k2 p1 p2 k3 k4 k5 k6 s1 s2 s3 s4 tau_x tau_y); the skew is fixed.
 struct ReprojectionErrorWithIntrinsics {
   ReprojectionErrorWithIntrinsics(const ModelShape& shape, const Eigen::Vector2d& uv_px, double sigma_px)
       : shape(shape), u(uv_px.x()), v(uv_px.y()), inv_sigma(1.0 / sigma_px) {}

@@ -5,7 +5,6 @@
 #include <array>
 #include <unordered_map>
 
-#include <ceres/rotation.h>
 #include <Eigen/Geometry>
 
 namespace photomill::triangulate {
@@ -104,25 +103,6 @@ Scene build_scene(const std::vector<TrackObservation>& tracks, const CameraModel
     }
   }
   return s;
-}
-
-Eigen::Matrix3d rotation_of(const PoseBlock& pose) {
-  Eigen::Matrix3d R;
-  ceres::AngleAxisToRotationMatrix(pose.data(), ceres::ColumnMajorAdapter3x3(R.data()));
-  return R;
-}
-
-Eigen::Vector3d translation_of(const PoseBlock& pose) { return {pose[3], pose[4], pose[5]}; }
-
-Eigen::Vector3d centre_of(const PoseBlock& pose) { return -rotation_of(pose).transpose() * translation_of(pose); }
-
-PoseBlock make_pose(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
-  PoseBlock p{};
-  ceres::RotationMatrixToAngleAxis(ceres::ColumnMajorAdapter3x3(R.data()), p.data());
-  p[3] = t.x();
-  p[4] = t.y();
-  p[5] = t.z();
-  return p;
 }
 
 Pose to_pose(const std::string& image, const PoseBlock& pose) {

@@ -13,9 +13,28 @@
 #include <Eigen/Core>
 
 #include "formats/tables.hpp"
-#include "triangulate/camera_model.hpp"
+#include "geometry/camera_model.hpp"
+#include "geometry/rotation.hpp"
 
 namespace photomill::triangulate {
+
+// The camera and pose geometry are photomill's one model (geometry/).
+using geometry::CameraModel;
+using geometry::Intrinsics;
+using geometry::ModelShape;
+using geometry::PoseBlock;
+using geometry::centre_of;
+using geometry::distort_to_pixel;
+using geometry::make_pose;
+using geometry::project;
+using geometry::project_point;
+using geometry::rotation_of;
+using geometry::shape_of;
+using geometry::to_camera;
+using geometry::to_camera_model;
+using geometry::translation_of;
+using geometry::undistort;
+using enum geometry::IntrinsicIndex;
 
 // Classes of observations with their own noise level, estimated separately (variance components):
 // coded targets (marker and board corners, control points), measured to a few hundredths of a
@@ -41,10 +60,6 @@ struct ObservationRef {
   int removed_round = 0;
   double removed_residual_px = 0;
 };
-
-// Pose parameter block: cam_from_world as [angle-axis (rad) 0..2, t (mm) 3..5];
-// x_cam = R(aa) X + t.
-using PoseBlock = std::array<double, 6>;
 
 struct SceneImage {
   std::string name;
@@ -113,11 +128,7 @@ Scene build_scene(const std::vector<TrackObservation>& tracks, const CameraModel
                   const std::vector<ControlPoint>& control_points, TrackId coded_id_limit = 4096,
                   bool weight_by_size = true);
 
-// Pose helpers.
-Eigen::Matrix3d rotation_of(const PoseBlock& pose);
-Eigen::Vector3d translation_of(const PoseBlock& pose);
-Eigen::Vector3d centre_of(const PoseBlock& pose);     // C = -R^T t
-PoseBlock make_pose(const Eigen::Matrix3d& R, const Eigen::Vector3d& t);
+// The pose block as the poses file's row.
 Pose to_pose(const std::string& image, const PoseBlock& pose);
 
 }  // namespace photomill::triangulate

@@ -9,7 +9,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/SVD>
 
-#include "triangulate/parallel.hpp"
+#include "geometry/parallel.hpp"
 
 namespace photomill::triangulate {
 namespace {
@@ -184,7 +184,7 @@ std::vector<PointView> views_of(const Scene& scene, const std::vector<std::size_
 std::size_t triangulate_tracks(Scene& scene, const TriangulationOptions& options, int threads,
                                bool retriangulate) {
   std::vector<char> newly(scene.tracks.size(), 0);
-  parallel_for(scene.tracks.size(), threads, [&](std::size_t begin, std::size_t end) {
+  geometry::parallel_blocks(scene.tracks.size(), threads, 64, [&](std::size_t begin, std::size_t end, int) {
     for (std::size_t t = begin; t < end; ++t) {
       SceneTrack& track = scene.tracks[t];
       if (track.state == TrackState::Rejected || track.at_control) continue;

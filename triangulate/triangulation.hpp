@@ -9,7 +9,6 @@
 
 #include <Eigen/Core>
 
-#include "triangulate/camera_model.hpp"
 #include "triangulate/scene.hpp"
 
 namespace photomill::triangulate {
@@ -62,7 +61,7 @@ std::optional<Eigen::Vector3d> triangulate_linear(const std::vector<PointView>& 
 double max_intersection_angle_deg(const std::vector<PointView>& views, const Eigen::Vector3d& xyz_mm);
 
 // Gauss-Newton refinement of X minimising sum_j |pi_j(X) - uv_j|^2 (pixels) with the poses fixed;
-// Jacobians by automatic differentiation of camera_model.hpp's project().
+// Jacobians by automatic differentiation of geometry/camera_model.hpp's project().
 Eigen::Vector3d refine_point(const CameraModel& camera, const std::vector<PointView>& views,
                              Eigen::Vector3d xyz_mm, const TriangulationOptions& options);
 

@@ -2,13 +2,12 @@
 #include "tests/synth/render.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
-#include <thread>
 #include <vector>
 
+#include "geometry/parallel.hpp"
 #include "tests/synth/camera_model.hpp"
 #include "tests/synth/random.hpp"
 
@@ -187,17 +186,8 @@ cv::Mat render(const RayScene& scene, const Camera& camera, const Pose& pose,
     }
   };
 
-  int threads = options.threads > 0 ? options.threads
-                                    : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  threads = std::min(threads, H);
-  std::atomic<int> next_row{0};
-  auto worker = [&] {
-    for (int j = next_row++; j < H; j = next_row++) render_row(j);
-  };
-  std::vector<std::thread> pool;
-  for (int k = 1; k < threads; ++k) pool.emplace_back(worker);
-  worker();
-  for (auto& th : pool) th.join();
+  geometry::parallel_for(static_cast<std::size_t>(H), options.threads,
+                         [&](std::size_t j) { render_row(static_cast<int>(j)); });
   return image;
 }
 

@@ -6,10 +6,9 @@
 #include <opencv2/calib3d.hpp>
 
 #include "formats/error.hpp"
-#include "triangulate/camera_model.hpp"
-#include "triangulate/scene.hpp"
+#include "geometry/camera_model.hpp"
 
-namespace photomill::triangulate {
+namespace photomill::geometry {
 namespace {
 
 Camera camera_with(const std::vector<double>& distortion) {
@@ -66,32 +65,57 @@ TEST_P(DistortionModels, UndistortInvertsProjection) {
 }
 
 INSTANTIATE_TEST_SUITE_P(
-    Triangulate, DistortionModels,
+    Geometry, DistortionModels,
     ::testing::Values(std::vector<double>{}, std::vector<double>{-0.08, 0.06, 0.0004, -0.0003},
                       std::vector<double>{-0.08, 0.06, 0.0004, -0.0003, -0.02},
                       std::vector<double>{-0.08, 0.06, 0.0004, -0.0003, -0.02, 0.01, -0.005, 0.002},
                       std::vector<double>{-0.08, 0.06, 0.0004, -0.0003, -0.02, 0.01, -0.005, 0.002, 0.001, -0.0005,
-                                          0.0007, 0.0002}));
+                                          0.0007, 0.0002},
+                      // The tilted sensor (Scheimpflug cameras), 14 coefficients.
+                      std::vector<double>{-0.08, 0.06, 0.0004, -0.0003, -0.02, 0.01, -0.005, 0.002, 0.001, -0.0005,
+                                          0.0007, 0.0002, 0.012, -0.008},
+                      std::vector<double>{0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, -0.03, 0.05}));
 
-TEST(CameraModel, RejectsTiltedSensor) {
-  std::vector<double> d(14, 0.0);
-  d[12] = 0.01;
+TEST(CameraModel, RejectsAnInvalidCameraNamingTheFile) {
+  Camera c = camera_with({});
+  c.camera_matrix(0, 0) = -1;
   try {
-    (void)to_camera_model(camera_with(d), "cam.yaml");
+    (void)to_camera_model(c, "cam.yaml");
     FAIL() << "expected InputError";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("cam.yaml"), std::string::npos);
-    EXPECT_NE(std::string(e.what()).find("tilted"), std::string::npos);
   }
-  std::vector<double> zero_tilt(14, 0.0);
-  zero_tilt[0] = -0.05;
-  EXPECT_NO_THROW((void)to_camera_model(camera_with(zero_tilt), "cam.yaml"));
+}
+
+TEST(CameraModel, UndistortToIdealPixelIsThePinholeOfTheUndistortedRay) {
+  const CameraModel model = to_camera_model(camera_with({-0.08, 0.06, 0.0004, -0.0003, -0.02}), "test");
+  const auto xy = undistort(model, {1800, 200});
+  const auto ideal = undistort_to_ideal_pixel(model, {1800, 200});
+  ASSERT_TRUE(xy && ideal);
+  EXPECT_NEAR(ideal->x(), 2400 * xy->x() + 1003.5, 1e-9);
+  EXPECT_NEAR(ideal->y(), 2401.2 * xy->y() + 747.25, 1e-9);
+  // Without distortion the ideal pixel is the pixel itself.
+  const CameraModel pinhole = to_camera_model(camera_with({}), "test");
+  const auto same = undistort_to_ideal_pixel(pinhole, {123.25, 456.5});
+  ASSERT_TRUE(same);
+  EXPECT_NEAR(same->x(), 123.25, 1e-9);
+  EXPECT_NEAR(same->y(), 456.5, 1e-9);
+}
+
+TEST(CameraModel, UndistortSaysWhenItCannot) {
+  // k1 = -1 folds the image over beyond r = 1/sqrt(3): a pixel far out has no ray.
+  const CameraModel folded = to_camera_model(camera_with({-1, 0, 0, 0}), "test");
+  EXPECT_FALSE(undistort(folded, {1003.5 + 3 * 2400, 747.25}).has_value());
 }
 
 TEST(CameraModel, RoundTripsToCamera) {
-  const Camera cam = camera_with({-0.08, 0.06, 0.0004, -0.0003, -0.02});
-  EXPECT_EQ(to_camera(to_camera_model(cam, "test"), cam), cam);
+  for (const auto& d : {std::vector<double>{-0.08, 0.06, 0.0004, -0.0003, -0.02},
+                        std::vector<double>{-0.08, 0.06, 0.0004, -0.0003, -0.02, 0.01, -0.005, 0.002, 0.001,
+                                            -0.0005, 0.0007, 0.0002, 0.012, -0.008}}) {
+    const Camera cam = camera_with(d);
+    EXPECT_EQ(to_camera(to_camera_model(cam, "test"), cam), cam);
+  }
 }
 
 }  // namespace
-}  // namespace photomill::triangulate
+}  // namespace photomill::geometry
