@@ -188,7 +188,7 @@ RefineStats refine_simplex(const std::vector<View>& views, const ModelOptions& m
     // Initial simplex steps: roughly how far each parameter may be from the minimum after the
     // initial estimate (3 % of f and of the image side, 0.03 for k_i, 0.003 for p_i, 0.03 rad, 3 %
     // of the distance). On the opencv-chessboard left set, steps 3x to 30x of these all need ~2 M
-    // evaluations, 0.1x more than 4 M (docs/calib.md).
+    // evaluations, 0.1x more than 4 M (docs/measurements/calib.md).
     Parameters step;
     const double f = p.intrinsics[0];
     const double side = std::max(image_size.width, image_size.height);
@@ -212,7 +212,7 @@ RefineStats refine_simplex(const std::vector<View>& views, const ModelOptions& m
     // Jacobian scaling: each run works in whitened coordinates z, x = x0 + L z, with L from the
     // Gauss-Newton curvature J^T J at its start point x0, and initial steps of `whitened_step`
     // (each raises the cost by about whitened_step^2 px^2; 3 to 100 all need ~40-50 k evaluations
-    // on the chessboard and synth sets, docs/calib.md). The simplex itself still uses cost values only; L is an affine change
+    // on the chessboard and synth sets, docs/measurements/calib.md). The simplex itself still uses cost values only; L is an affine change
     // of variables, so the cost and its minimum are the same. Each restart re-whitens at the best
     // point so far.
     SimplexOptions once = options;

@@ -44,7 +44,7 @@ struct BoardDetectOptions {
   // by cornerSubPix on the image, to the chessboard criteria above, with a half-window as large as
   // the neighbouring markers allow (see refine_charuco in boards.cpp) up to the maximum below.
   // On rendered boards this leaves 0.016-0.036 px RMS against the truth where OpenCV's corners
-  // minus 0.5 px leave 0.018-0.059 px (docs/calib.md).
+  // minus 0.5 px leave 0.018-0.059 px (docs/measurements/calib.md).
   bool charuco_refine = true;
   int charuco_max_half_window_px = 20;
   int charuco_min_half_window_px = 2;

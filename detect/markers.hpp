@@ -69,7 +69,7 @@ CornerRefinement corner_refinement_from_name(const std::string& name);
 // method in 2D). Curved edges come from lens distortion (~0.1 px sagitta for a 130 px edge near
 // the border at k1 = -0.08) and from markers stuck on a curved part: D starts at 3 and drops while
 // the top coefficient is not significant. Two passes: a coarse one around OpenCV's polygon, a fine
-// one through the coarse corners. Measured choices and figures: docs/detect.md.
+// one through the coarse corners. Measured choices and figures: docs/measurements/detect.md.
 struct EdgeFitOptions {
   int degree = 3;                 // D at most: 1 straight lines, 2 parabolas, 3 cubics ...
   double degree_significance = 3; // ... lowered while |c_D| is below this many standard errors

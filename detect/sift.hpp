@@ -25,7 +25,7 @@ struct SiftOptions {
   // 0: only the keypoint's own position is tested (OpenCV's mask). Why: a feature just outside a
   // marker's mask is described, and least-squares matched, mostly by the marker's straight black
   // border, along which it can slide (the aperture problem); on the demo such two-view points sat
-  // in the quiet zones up to 0.1 mm off, with no neighbours to outvote them (docs/detect.md).
+  // in the quiet zones up to 0.1 mm off, with no neighbours to outvote them (docs/measurements/detect.md).
   double mask_clearance_per_size = 0;
   int octave_layers = 3;            // Lowe's s: scales sampled per octave
   double contrast_threshold = 0.04; // OpenCV's default; OpenCV divides it by s (Lowe's 0.03 is 0.09)

@@ -1,5 +1,5 @@
 // fitsurf_bench: speed and accuracy figures of fitsurf's method on the analytic test shapes
-// (fitsurf/test_shapes.hpp), printed as a table for docs/fitsurf.md. Not a test: it asserts
+// (fitsurf/test_shapes.hpp), printed as a table for docs/measurements/fitsurf.md. Not a test: it asserts
 // nothing; scripts/bench-fitsurf.sh runs it with the machine load alongside.
 //   fitsurf_bench [--threads N] [--repeat R] [--quick] [--section speed|accuracy|outliers|robust|sparse|layouts|synth]
 //   fitsurf_bench --write-cloud FILE.ply|FILE.xyz [--points N] [--shape NAME]   (input for CLI timing)

@@ -544,7 +544,7 @@ FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& 
   double previous = std::numeric_limits<double>::infinity();
   // The first weighting restarts from the plane parameters: outliers (near the edge of the data
   // most) can curl the unweighted first fit so far that projecting onto it scrambles the
-  // parameters of the points there, which no reweighting repairs (docs/fitsurf.md, figures).
+  // parameters of the points there, which no reweighting repairs (docs/measurements/fitsurf.md).
   const std::vector<Eigen::Vector2d> plane_uv = reweight && o.parameter_correction ? uv : std::vector<Eigen::Vector2d>{};
   bool weighted = false;
   // The screening's coarse fit has redundancy even where the fine net has too little for reweighting.

@@ -20,7 +20,7 @@
 //      "reject" (iterative k-sigma rejection, as in geodetic data snooping) w = 1 for
 //      |e_k| <= c_k else 0; Huber w = min(1, c_k/|e_k|); Tukey biweight w = (1 - (e_k/c_k)^2)^2
 //      for |e_k| < c_k, else 0. "reject" by default: on clean noisy data it gives the same surface
-//      as no reweighting, and it removes 1-5 % gross outliers (docs/fitsurf.md, figures);
+//      as no reweighting, and it removes 1-5 % gross outliers (docs/measurements/fitsurf.md);
 //      reweighting starts after the first parameter correction, and the first weighting restarts
 //      from the plane parameters (an unweighted fit curled by outliers scrambles the foot points
 //      of the points near it);
@@ -81,7 +81,7 @@ struct FitOptions {
   double smoothing_mm4 = 1e-2;        // lambda of the smoothing term (normal_equations.hpp); mm^6 for order 3
   // m of the smoothing energy E_m (normal_equations.hpp): 2 = thin plate (second derivatives;
   // planes are free), 3 = third derivatives (quadrics are free, so a gap on a curved part is
-  // bridged along its curvature instead of being flattened; docs/fitsurf.md, figures).
+  // bridged along its curvature instead of being flattened; docs/measurements/fitsurf.md).
   int smoothing_order = 2;
   // > 0: choose lambda instead so that the residual RMS of the first fit equals this noise level
   // (Reinsch's criterion; for sparse noisy points such as markers, whose noise is known).
@@ -113,7 +113,7 @@ struct FitOptions {
   // points per pole) at the plane parameters, deviates from its neighbours' by more than
   // gross_threshold times the robust scale (local, at least the global one) starts with weight 0.
   // Parameter correction would hide it: a point tens of mm off pulls a spike up to itself in the
-  // fine fit, and its orthogonal distance to the spike's flank is small (docs/fitsurf.md).
+  // fine fit, and its orthogonal distance to the spike's flank is small (docs/measurements/fitsurf.md).
   double gross_threshold = 20;
   double gross_points_per_pole = 25;
   double min_pivot_ratio = 1e-13;     // LDLT pivots below this times the largest: singular system

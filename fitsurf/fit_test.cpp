@@ -63,7 +63,7 @@ INSTANTIATE_TEST_SUITE_P(Shapes, DenseAccuracy,
 // synth_wave, synth_dome are its other parts, synth::make_shape itself): uniform knots 5.6 mm
 // apart leave 0.012-0.017 mm RMS at 30x30, knots placed by the shape of a first fit
 // (adaptive_knots) bring them within 0.01 mm (0.004-0.0065), and keep every other shape within it
-// (docs/fitsurf.md, "Accuracy"). Done-when 1 on synth's true surfaces.
+// (docs/measurements/fitsurf.md, dense accuracy). Done-when 1 on synth's true surfaces.
 class DenseAdaptive : public FitsurfFit, public ::testing::WithParamInterface<std::string> {};
 
 TEST_P(DenseAdaptive, HundredThousandNoisyPointsWithin10MicrometresAt30x30) {
@@ -119,7 +119,7 @@ TEST_F(FitsurfFit, AdaptiveKnotsCrowdIntoTheBlend) {
 // Done-when 2: parameter correction beats plane projection alone where the net, not the noise,
 // limits the accuracy: on the most curved shape (steep: 0.1 /mm at its top) with a 16x16 net and on
 // the steepest (ridge: 74-degree sides) with 20x20. (With 30x30 both are limited by the noise and
-// equal: docs/fitsurf.md.)
+// equal: docs/measurements/fitsurf.md.)
 struct CorrectionCase {
   std::string shape;
   int net;
@@ -136,7 +136,7 @@ TEST_P(Correction, BeatsPlaneProjectionWhereTheNetLimits) {
   o.fit.poles_u = o.fit.poles_v = GetParam().net;
   // The two parameterisations alone, without reweighting (which, where the net cannot follow the
   // shape, flags a few clean points: ridge 20x20 with the default reject, 0.00317 -> 0.00291 mm,
-  // docs/fitsurf.md).
+  // docs/measurements/fitsurf.md).
   o.fit.robust = RobustLoss::None;
   o.fit.parameter_correction = false;
   const Result plane = fit_point_cloud(cloud, o);
@@ -179,7 +179,7 @@ TEST_P(SparseMarkers, SmoothWithoutWiggles) {
 }
 
 // Not the ridge: markers 10 mm apart across its 74-degree sides reach 2.5x its curvature (numbers
-// in docs/fitsurf.md).
+// in docs/measurements/fitsurf.md).
 INSTANTIATE_TEST_SUITE_P(Shapes, SparseMarkers, ::testing::Values("bumps", "saddle", "wave", "dome", "steep"));
 
 // Smoothing of order 3 (third derivatives: quadrics cost nothing) on the same ~150 markers: a
@@ -187,7 +187,7 @@ INSTANTIATE_TEST_SUITE_P(Shapes, SparseMarkers, ::testing::Values("bumps", "sadd
 // flattened towards a plane. No wiggles on every shape, the ridge included (thin plate: 2.1x its
 // curvature), and within 0.1 mm of the truth on saddle, dome and steep (thin plate: steep
 // 0.26 mm); never farther from the truth than the thin plate's fit, but on the demo part whose
-// 4 mm shoulders fall between markers 10 mm apart (figures in docs/fitsurf.md).
+// 4 mm shoulders fall between markers 10 mm apart (figures in docs/measurements/fitsurf.md).
 class SparseMarkersOrder3 : public FitsurfFit, public ::testing::WithParamInterface<std::string> {};
 
 TEST_P(SparseMarkersOrder3, FollowsTheCurvatureBetweenMarkers) {
@@ -296,7 +296,7 @@ TEST_F(FitsurfFit, SparseErrorIsSampling) {
 // that: the thin-plate spline interpolant of the same points (the least-bending surface through
 // them, a smooth plausible part with identical marker positions) lies more than 0.2 mm from the
 // truth, so no fit can be within 0.1 mm of both. fitsurf's fit is about as close to the truth as
-// that interpolant (figures in docs/fitsurf.md; the same points as fitsurf_bench's sparse table).
+// that interpolant (figures in docs/measurements/fitsurf.md; the same points as fitsurf_bench's sparse table).
 class SparseLimit : public FitsurfFit, public ::testing::WithParamInterface<std::string> {};
 
 TEST_P(SparseLimit, SamplesCannotPinTheSurfaceTo100Micrometres) {
@@ -327,7 +327,7 @@ INSTANTIATE_TEST_SUITE_P(Shapes, SparseLimit, ::testing::Values("wave", "steep",
 // ~150 markers interpolated by the kernel that predicts each of them best from the others, the
 // net fitted to that. Within 0.1 mm of the truth inside the points' hull on the synth kinds of
 // shape and the narrow bump, without wiggles, and closer than the spline's own smoothing of
-// either order (docs/fitsurf.md, "Sparse points": 6 jitter seeds, worst bumps 0.087, saddle
+// either order (docs/measurements/fitsurf.md, sparse markers: 6 jitter seeds, worst bumps 0.087, saddle
 // 0.034, wave 0.098, dome 0.032, steep 0.054 mm).
 using SparseSeed = std::tuple<std::string, std::uint64_t>;
 class SparseKernel : public FitsurfFit, public ::testing::WithParamInterface<SparseSeed> {};
@@ -357,7 +357,7 @@ INSTANTIATE_TEST_SUITE_P(Shapes, SparseKernel,
 // plate, 4 mm shoulders between markers 10 mm apart): the kernel prefit is still free of wiggles
 // and closer to the truth over the points' hull than the spline's own smoothing of either order.
 // (Not inside the demo part's blend, where its short length ripples between the markers:
-// docs/fitsurf.md has the figures.)
+// docs/measurements/fitsurf.md has the figures.)
 class SparseKernelBeyond : public FitsurfFit, public ::testing::WithParamInterface<std::string> {};
 
 TEST_P(SparseKernelBeyond, CloserThanTheSplineAlone) {
@@ -399,7 +399,7 @@ TEST_F(FitsurfFit, KernelPrefitLeavesOutMismatchedMarkers) {
 // Clean sparse points scattered at random (not on a grid: some far out on the hull's edge, some
 // clustered) are not taken for outliers: each leave-one-out residual is judged against its own
 // prediction's uncertainty. (Judged by the raw residuals, 8 of 600 such points on bumps and 27 on
-// the ridge were rejected; docs/fitsurf.md.)
+// the ridge were rejected; docs/measurements/fitsurf.md.)
 class SparseKernelClean : public FitsurfFit, public ::testing::WithParamInterface<SparseSeed> {};
 
 TEST_P(SparseKernelClean, NoOutliersAmongCleanScatteredPoints) {

@@ -21,7 +21,7 @@ namespace photomill::fitsurf {
 // by leave-one-out cross-validation (kernel.hpp), then fit the B-spline to that interpolant
 // sampled densely inside the points' hull. With fewer points than poles the B-spline's smoothing
 // term, not the data, shapes the surface between the points; the kernel that best predicts each
-// point from the others does it better (docs/fitsurf.md, "Sparse points": 150 markers 10 mm apart
+// point from the others does it better (docs/measurements/fitsurf.md, sparse markers: 150 markers 10 mm apart
 // on a wave, 0.03-0.10 mm from the truth instead of 0.17-0.45).
 enum class Prefit { Auto, Kernel, None };
 

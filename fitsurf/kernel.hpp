@@ -1,7 +1,7 @@
 // Scattered-data interpolation of a height field z = f(x, y) by a radial kernel whose shape and
 // length are chosen by leave-one-out cross-validation: fitsurf's prefit for sparse clouds (a few
 // hundred markers), where the B-spline's smoothing term, not the data, would decide the shape
-// between the points (docs/fitsurf.md, "Sparse points").
+// between the points (docs/fitsurf.md, Method; figures in docs/measurements/fitsurf.md).
 //
 //   f(x) = sum_k c_k phi(|x - x_k|) + sum_j d_j p_j(x),   [Phi + D   P] [c]   [z]
 //                                                         [P^T      0] [d] = [0]
@@ -28,7 +28,7 @@
 // (KernelModel::aspect, KernelOptions::max_aspect), taken only by a margin (anisotropy_gain).
 // (A nugget for noisy points - kriging with measurement error, its scale by the discrepancy
 // principle - was tried and gained nothing on 150 markers with 0.005-0.1 mm noise,
-// docs/fitsurf.md; fitsurf keeps the spline's --noise-mm for them.)
+// docs/measurements/fitsurf.md; fitsurf keeps the spline's --noise-mm for them.)
 #pragma once
 
 #include <string>
@@ -69,7 +69,7 @@ struct KernelOptions {
   // fine). One is chosen only when its leave-one-out RMS is anisotropy_gain times smaller than the
   // isotropic best's: on 150 markers of parts without a preferred direction the extra freedom
   // otherwise wins by a few per cent and extrapolates worse. Measured on 150 markers, 24 layouts
-  // each (docs/fitsurf.md): smooth parts without a preferred direction up to 1.49x (one wave
+  // each (docs/measurements/fitsurf.md): smooth parts without a preferred direction up to 1.49x (one wave
   // layout's 1.47x, a fluke of the length grid, took an anisotropic kernel 0.154 mm off the
   // truth where the isotropic one is 0.102 mm), the ridge 2.3x and more. max_aspect 1: none.
   double max_aspect = 8;

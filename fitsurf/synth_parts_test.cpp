@@ -4,7 +4,7 @@
 // synth_* cases): ~150 marker points within 0.1 mm inside their hull where synth puts a part's
 // markers, over the interior inside the blend (synth::make_scene, tests/synth/scene.cpp). With
 // markers across the blend as well, 150 points cannot pin the blend down, and the kernel prefit's
-// leave-one-out error says so (docs/fitsurf.md, "Sparse points").
+// leave-one-out error says so (docs/measurements/fitsurf.md, sparse markers).
 #include <cstdint>
 #include <string>
 #include <tuple>
@@ -28,7 +28,7 @@ protected:
 };
 
 // 150 markers (15 x 10, 7.3 x 6 mm apart) over the interior, |x| < 55, |y| < 30 mm, with the
-// default options (the kernel prefit). Measured on 24 jitter seeds (docs/fitsurf.md): saddle,
+// default options (the kernel prefit). Measured on 24 jitter seeds (docs/measurements/fitsurf.md): saddle,
 // wave and dome within 0.1 mm on all, bumps (the demo part) on 22 (0.102 and 0.126 at the hull's
 // edge); at least 2.5 mm inside the hull every seed is within 0.075 mm.
 using SynthSeed = std::tuple<std::string, std::uint64_t>;

@@ -16,7 +16,7 @@
 // XXXVIII-5). The map between two photos of a curved surface has such terms; fitted by A d + t
 // alone, t moves off the true match of the reference point by about C E[m], the quadratic part's
 // mean over the window (all of one sign on a shoulder), which is what put the demo's points
-// 0.046 mm inside its convex shoulders (docs/match.md).
+// 0.046 mm inside its convex shoulders (docs/measurements/match.md).
 #pragma once
 
 #include <optional>

@@ -122,7 +122,7 @@ struct Scene {
 // position error grows in proportion to its scale (Lowe 2004, sec. 4, locates the extremum to a
 // fraction of the sample spacing of its octave; ORB-SLAM, Mur-Artal et al. 2015, weights each
 // observation by its pyramid level the same way). Measured on the demo: the 3D error of natural
-// points grows about linearly with their features' size (docs/triangulate.md).
+// points grows about linearly with their features' size (docs/measurements/triangulate.md).
 constexpr double kMinRelativeSigma = 0.25;
 Scene build_scene(const std::vector<TrackObservation>& tracks, const CameraModel& camera,
                   const std::vector<ControlPoint>& control_points, TrackId coded_id_limit = 4096,
