@@ -55,14 +55,17 @@ TEST(Parallel, RethrowsTheFirstErrorAfterJoining) {
   }), std::invalid_argument);
 }
 
-TEST(Random, IsPortableAndCounterBased) {
-  // The first values for seed 1, as splitmix64 (Steele, Lea, Flood 2014) defines them: a change
-  // here changes every synthetic scene and test data set.
+TEST(Random, IsSplitMix64InBothOfItsSeedings) {
+  // The first values as splitmix64 (Steele, Lea, Flood 2014) defines them: a change here changes
+  // every synthetic scene and test data set.
   Rng a(1), b(1), c(2);
   const std::uint64_t first = a.next();
-  EXPECT_EQ(first, splitmix64(splitmix64(1)));
+  EXPECT_EQ(first, splitmix64(1));                        // mix(seed + gamma)
+  EXPECT_EQ(a.next(), splitmix64(1 + Rng::kGoldenGamma));  // mix(seed + 2 gamma)
   EXPECT_EQ(b.next(), first);
   EXPECT_NE(c.next(), first);
+  Rng k = Rng::counter(5);
+  for (std::uint64_t i = 0; i < 4; ++i) EXPECT_EQ(k.next(), splitmix64(splitmix64(5) + i)) << i;
   double sum = 0, sq = 0;
   Rng r(7);
   for (int i = 0; i < 20000; ++i) {

@@ -1,7 +1,7 @@
 // photomill's one random generator: the same numbers on every platform and standard library
-// (std::normal_distribution and friends are implementation-defined), counter-based so that a
-// parallel loop can give item k its own stream Rng(seed + k) and draw the same values whatever
-// the thread count. For RANSAC samples, synthetic scenes and test data; not for cryptography.
+// (std::normal_distribution and friends are implementation-defined), so RANSAC samples, synthetic
+// scenes and test data are reproducible everywhere and whatever the thread count. Not for
+// cryptography.
 #pragma once
 
 #include <cmath>
@@ -19,11 +19,25 @@ inline std::uint64_t splitmix64(std::uint64_t x) {
   return x ^ (x >> 31);
 }
 
-// A small sequential generator on top of splitmix64.
+// SplitMix64 as Steele, Lea and Flood define it: a state advanced by an odd "gamma" and mixed by
+// splitmix64's finaliser, value k = mix(state0 + k gamma).
 class Rng {
 public:
-  explicit Rng(std::uint64_t seed) : state_(splitmix64(seed)) {}
-  std::uint64_t next() { return splitmix64(state_++); }
+  static constexpr std::uint64_t kGoldenGamma = 0x9E3779B97F4A7C15ull;
+  // The paper's generator (and Java's SplittableRandom's) from `seed`, with the golden gamma:
+  // value k = mix(seed + (k + 1) gamma). fitsurf's RANSAC and test shapes draw from it.
+  explicit Rng(std::uint64_t seed) : state_(seed), gamma_(kGoldenGamma) {}
+  // The counter-based form synth's scenes are drawn with: value k = splitmix64(splitmix64(seed) + k),
+  // so item k of a parallel loop can take its own stream from a seed of its own.
+  static Rng counter(std::uint64_t seed) { return Rng(splitmix64(seed) + kGoldenGamma - 1, 1); }
+
+  std::uint64_t next() {
+    state_ += gamma_;
+    std::uint64_t x = state_;
+    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+    x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+    return x ^ (x >> 31);
+  }
   // Uniform in [0, 1).
   double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
   double uniform(double lo, double hi) { return lo + (hi - lo) * uniform(); }
@@ -37,7 +51,9 @@ public:
   }
 
 private:
+  Rng(std::uint64_t state, std::uint64_t gamma) : state_(state), gamma_(gamma) {}
   std::uint64_t state_;
+  std::uint64_t gamma_;
 };
 
 }  // namespace photomill::geometry
