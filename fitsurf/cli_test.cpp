@@ -94,6 +94,10 @@ std::vector<CliCase> golden_cases() {
       {"bad_prefit", {"--prefit", "rbf"}, markers, 2, "", "--prefit"},
       {"kernel_with_tolerance", {"--prefit", "kernel", "--tolerance", "0.05"}, markers, 2, "", "--prefit kernel and --tolerance"},
       {"tolerance_met", {"--tolerance", "0.05", "--tolerance-stat", "p95"}, dome, 0, "photomill-surface v1", "tolerance 0.05 mm (p95) met"},
+      // A write that fails on a full device is an error, for outputs Open CASCADE writes too.
+      {"step_to_a_full_device", {"--step", "/dev/full"}, dome, 1, "", "/dev/full: write failed"},
+      {"iges_to_a_full_device", {"--iges", "/dev/full"}, dome, 1, "", "/dev/full: write failed"},
+      {"surface_to_a_full_device", {"-o", "/dev/full"}, dome, 1, "", "/dev/full: write failed"},
   };
 }
 

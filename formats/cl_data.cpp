@@ -165,6 +165,11 @@ ClData read_cl_apt(std::istream& in, const std::string& source) {
     }
   }
   if (!any) throw InputError(source, 0, "empty input: expected APT CL data");
+  // An APT program ends with FINI; without it the file may have been cut anywhere, even inside
+  // its last number (GOTO/...,2 of a file that said 27.9077), which no other check can see.
+  if (!finished) {
+    throw InputError(source, lines.line_number(), "the CL data ends without FINI: the file is cut short or incomplete");
+  }
   if (cl.part_name.empty()) cl.part_name = "photomill";
   return cl;
 }

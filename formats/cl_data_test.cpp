@@ -91,6 +91,9 @@ INSTANTIATE_TEST_SUITE_P(
                       BadCl{"inches", "UNITS/INCHES\n", "p.cl:1: only UNITS/MM is supported"},
                       BadCl{"continuation", "GOTO/1,2,$\n", "continuation lines"},
                       BadCl{"after_fini", "FINI\nGOTO/1,2,3\n", "p.cl:2: content after FINI"},
+                      BadCl{"no_fini", "FEDRAT/100\nGOTO/1,2,3\nEND\n", "p.cl:3: the CL data ends without FINI"},
+                      // Cut inside its last number: GOTO/1,2,27.9077 read as z = 2 unless FINI is required.
+                      BadCl{"cut_inside_a_number", "FEDRAT/100\nGOTO/1,2,27.9077\nGOTO/1,2,2", "p.cl:3: the CL data ends without FINI"},
                       BadCl{"csv_kind", "move,x_mm,y_mm,z_mm,i,j,k,feed_mm_per_min\njump,1,2,3,,,,\n", "p.cl:2: move must be 'rapid' or 'feed'"},
                       BadCl{"csv_feed", "move,x_mm,y_mm,z_mm,i,j,k,feed_mm_per_min\nfeed,1,2,3,,,,\n", "p.cl:2: feed move without feed_mm_per_min"},
                       BadCl{"csv_axis", "move,x_mm,y_mm,z_mm,i,j,k,feed_mm_per_min\nfeed,1,2,3,0,,1,5\n", "p.cl:2: give all of i, j, k or none"}),

@@ -141,6 +141,24 @@ std::string read_all(const std::string& path, std::size_t max_bytes) {
   return data;
 }
 
+namespace {
+
+// Copies the file `from` into `out` (flushed), true when every byte was written. (operator<< of an
+// empty streambuf would set failbit, so the copy is a loop.)
+bool copy_contents(const std::string& from, std::ostream& out) {
+  std::ifstream in(from, std::ios::binary);
+  if (!in) return false;
+  char buf[1 << 16];
+  while (in.read(buf, sizeof buf) || in.gcount() > 0) {
+    out.write(buf, in.gcount());
+    if (!out) return false;
+  }
+  out.flush();
+  return static_cast<bool>(out) && in.eof();
+}
+
+}  // namespace
+
 OutputFile::OutputFile(std::string path) : path_(std::move(path)), to_stdout_(path_.empty() || path_ == "-") {
   std::error_code ec;
   const auto status = std::filesystem::status(path_, ec);
@@ -191,13 +209,13 @@ void OutputFile::commit() {
   if (committed_) return;
   if (to_stdout_) {
     if (!temp_.empty()) {  // a library wrote by name: copy it to stdout
-      std::ifstream in(temp_, std::ios::binary);
-      std::cout << in.rdbuf();
-      in.close();
+      const bool copied = copy_contents(temp_, std::cout);
       std::remove(temp_.c_str());
       unregister_pending(temp_);
+      if (!copied) throw InputError("<stdout>", 0, "write failed");
     }
     std::cout.flush();
+    if (!std::cout) throw InputError("<stdout>", 0, "write failed");
     committed_ = true;
     return;
   }
@@ -209,12 +227,13 @@ void OutputFile::commit() {
       if (!ok) throw InputError(path_, 0, "write failed");
     }
     if (!temp_.empty()) {  // a library wrote by name: copy it onto the device
-      std::ifstream in(temp_, std::ios::binary);
       std::ofstream out(path_, std::ios::binary);
-      out << in.rdbuf();
-      in.close();
+      bool copied = static_cast<bool>(out) && copy_contents(temp_, out);
+      out.close();
+      copied = copied && static_cast<bool>(out);
       std::remove(temp_.c_str());
       unregister_pending(temp_);
+      if (!copied) throw InputError(path_, 0, std::string("write failed: ") + std::strerror(errno));
     }
     committed_ = true;
     return;

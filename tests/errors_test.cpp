@@ -408,6 +408,7 @@ void write_fixtures(const fs::path& dir) {
   f["part.cl"] = apt;
   f["part_header.cl"] = "$$ photomill CL data v1: tool tip positions, mm\nPARTNO/handle\nUNITS/MM\nEND\nFINI\n";
   f["part_trunc.cl"] = apt.substr(0, apt.find("GOTO/-74.25") + 9);
+  f["part_cut.cl"] = apt.substr(0, apt.find("12.375") + 4);  // inside the last GOTO's z, a valid number
   f["part_cols.cl"] = replace_all(apt, "GOTO/-74.25,-50,12.3125", "GOTO/-74.25,-50");
   f["part_word.cl"] = replace_all(apt, "GOTO/-74.25,-50,12.3125", "GOTO/-74.25,-50,high");
   f["part_nan.cl"] = replace_all(apt, "GOTO/-74.25,-50,12.3125", "GOTO/-74.25,-50,nan");

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "formats/error.hpp"
+#include "formats/log.hpp"
 
 namespace photomill::toolpath {
 namespace {
@@ -56,6 +57,10 @@ void write_gcode(std::ostream& out, const ClData& cl, const GcodeOptions& o, con
     }
     top = std::max(top, m.tip_mm.z());
   }
+  if (o.safe_z_mm && !std::isfinite(*o.safe_z_mm)) throw UsageError("--safe-z-mm must be a finite number");
+  if (o.spindle_rpm && !(std::isfinite(*o.spindle_rpm) && *o.spindle_rpm > 0)) {
+    throw UsageError("--spindle-rpm must be a positive number (--no-spindle writes no S, M3 or M5)");
+  }
   const double safe = o.safe_z_mm.value_or(top);
   if (safe < top) {
     throw UsageError("--safe-z-mm " + gcode_number(safe, o.decimals) + " is below the highest point of the CL data (" +
@@ -64,6 +69,12 @@ void write_gcode(std::ostream& out, const ClData& cl, const GcodeOptions& o, con
   // Spindle speed to write, 0 = none.
   double rpm = 0;
   if (o.spindle) rpm = o.spindle_rpm.value_or(cl.spindle_rpm.value_or(0.0));
+  // A program that feeds into the part with the spindle standing breaks the tool: say so.
+  const bool feeds = std::any_of(cl.moves.begin(), cl.moves.end(), [](const ClMove& m) { return m.kind == ClMove::Kind::Feed; });
+  if (o.spindle && !(rpm > 0) && feeds) {
+    log::warn(source + ": no spindle speed (no SPINDL in the CL data, no --spindle-rpm): the program starts no spindle "
+              "before its feed moves; give --spindle-rpm RPM, or --no-spindle if the spindle is started by hand");
+  }
   const bool coolant = o.coolant == CoolantMode::On || (o.coolant == CoolantMode::Auto && cl.coolant);
   const int d = o.decimals;
 

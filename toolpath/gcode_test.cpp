@@ -6,6 +6,8 @@
 #include <fstream>
 #include <sstream>
 
+#include <limits>
+
 #include <gtest/gtest.h>
 
 #include "formats/error.hpp"
@@ -92,6 +94,24 @@ TEST(Gcode, OptionsChangeTheFrame) {
   EXPECT_NE(g.find("M2\n%\n"), std::string::npos);
   o.safe_z_mm = 20;  // below the CL data's own rapid plane
   EXPECT_THROW(post(small_cl(), o), UsageError);
+}
+
+TEST(Gcode, RefusesNonsenseSafeZAndSpindleSpeeds) {
+  for (double z : {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    GcodeOptions o;
+    o.safe_z_mm = z;
+    EXPECT_THROW(post(small_cl(), o), UsageError) << z;
+  }
+  for (double rpm : {0.0, -12000.0, std::numeric_limits<double>::quiet_NaN()}) {
+    GcodeOptions o;
+    o.spindle_rpm = rpm;
+    EXPECT_THROW(post(small_cl(), o), UsageError) << rpm;
+  }
+  // Without any speed the program is still written (a spindle started by hand), with a warning
+  // (tested through clpost in toolpath_cli_test): no S or M3 in it.
+  ClData no_speed = small_cl();
+  no_speed.spindle_rpm.reset();
+  EXPECT_EQ(post(no_speed).find("M3\n"), std::string::npos);  // (M30 ends the program)
 }
 
 TEST(Gcode, DiagonalRapidsAreSplitSoTheToolNeverDescendsAcross) {
