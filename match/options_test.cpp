@@ -32,7 +32,7 @@ using photomill::test::ToolResult;
 
 const std::string kDemo = std::string(PHOTOMILL_SOURCE_DIR) + "/data/demo/";
 
-// Three 800 x 600 px crops of the demo's photos part_00..02.jpg around the middle of the part (the
+// Three 560 x 420 px crops of the demo's photos part_00..02.jpg around the middle of the part (the
 // camera's principal point moved with them), and what detect finds in them: markers (obs.csv)
 // and SIFT features (feat/). Made once per test process, in a temporary folder where match runs.
 struct Detected {
@@ -41,18 +41,18 @@ struct Detected {
   Detected() {
     for (const char* name : {"part_00.jpg", "part_01.jpg", "part_02.jpg"}) {
       const cv::Mat photo = cv::imread(kDemo + name, cv::IMREAD_GRAYSCALE);
-      cv::imwrite((dir.path() / name).string(), photo(cv::Rect(600, 400, 800, 600)), {cv::IMWRITE_JPEG_QUALITY, 95});
+      cv::imwrite((dir.path() / name).string(), photo(cv::Rect(740, 450, 560, 420)), {cv::IMWRITE_JPEG_QUALITY, 95});
     }
     std::ifstream in(kDemo + "camera.yaml");
     Camera camera = read_camera_yaml(in, "camera.yaml");
-    camera.image_width_px = 800;
-    camera.image_height_px = 600;
-    camera.camera_matrix(0, 2) -= 600;
-    camera.camera_matrix(1, 2) -= 400;
+    camera.image_width_px = 560;
+    camera.image_height_px = 420;
+    camera.camera_matrix(0, 2) -= 740;
+    camera.camera_matrix(1, 2) -= 450;
     std::ofstream out(dir.path() / "camera.yaml");
     write_camera_yaml(out, camera);
     out.close();
-    r = run_tool("detect", {"--aruco", "DICT_4X4_100", "--features", "feat", "--mask-markers", "part_00.jpg", "part_01.jpg",
+    r = run_tool("detect", {"--aruco", "DICT_4X4_100", "--features", "feat", "--mask-markers", "--max-features", "800", "part_00.jpg", "part_01.jpg",
                             "part_02.jpg", "-o", "obs.csv"},
                  "", dir.path());
   }
