@@ -366,7 +366,8 @@ void validate(const FitOptions& o) {
   need(o.gross_threshold > 0 && o.gross_points_per_pole > 0, "the gross-outlier screening options must be positive");
   need(o.robust_min_scale_mm > 0, "--robust-floor-mm must be positive");
   need(o.adaptive_knot_ratio >= 1 && o.adaptive_knot_floor_mm > 0, "the adaptive knots' ratio must be >= 1 and floor > 0");
-  need(o.cg_tolerance > 0 && o.cg_max_iterations > 0, "CG tolerance and iterations must be positive");
+  need(o.cg_tolerance > 0, "--cg-tolerance must be positive");
+  need(o.cg_max_iterations > 0, "the CG iterations must be positive");
   need(o.threads >= 0, "--threads must be >= 0");
 }
 

@@ -1,0 +1,207 @@
+// One case per fitsurf option not covered by the golden cases (issue 22): the option parses and
+// has its documented effect (docs/fitsurf.md, --help), read from the JSON report or the surface
+// text; a value out of its range exits 2 naming the option.
+#include <cmath>
+#include <functional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "fitsurf/test_shapes.hpp"
+#include "formats/point_cloud.hpp"
+#include "tests/option_check.hpp"
+#include "tests/run_tool.hpp"
+#include "tests/temp_dir.hpp"
+
+namespace photomill::fitsurf {
+namespace {
+
+using photomill::test::count_of;
+using photomill::test::json_number;
+using photomill::test::json_raw;
+using photomill::test::run_tool;
+using photomill::test::TempDir;
+using photomill::test::ToolResult;
+
+std::string xyz_text(const std::vector<Eigen::Vector3d>& pts) {
+  PointCloud c;
+  c.points_mm = pts;
+  std::ostringstream out;
+  write_xyz(out, c);
+  return out.str();
+}
+
+// The dome (z from 20 to 38 mm), 1500 points with 0.01 mm noise.
+const std::string& dome() {
+  static const std::string text = xyz_text(fitsurf::test::sample(fitsurf::test::shape("dome"), 1500, 0.01, 41));
+  return text;
+}
+
+// The dome standing on a flat plate at z = 0 (400 points around it, 10 mm below its lowest edge).
+const std::string& dome_on_plate() {
+  static const std::string text = [] {
+    std::vector<Eigen::Vector3d> pts = fitsurf::test::sample(fitsurf::test::shape("dome"), 1500, 0.01, 41);
+    for (int k = 0; k < 400; ++k) pts.emplace_back(-100 + 10 * (k % 20) + 0.3, -100 + 10 * (k / 20) + 0.7, 0.2 * ((k * 7) % 5) / 4.0);
+    return xyz_text(pts);
+  }();
+  return text;
+}
+
+struct Outcome {
+  ToolResult r;
+  std::string report;
+};
+
+Outcome fit(std::vector<std::string> args, const std::string& cloud = dome()) {
+  TempDir dir;
+  const auto report = dir.path() / "report.json";
+  args.insert(args.end(), {"--report", report.string(), "-"});
+  Outcome run{run_tool("fitsurf", args, cloud), ""};
+  run.report = photomill::test::read_file(report);
+  return run;
+}
+
+// The round_rms_mm array's length: the fits made.
+std::size_t rounds(const std::string& report) {
+  const std::size_t b = report.find("\"round_rms_mm\":[");
+  if (b == std::string::npos) return 0;
+  const std::size_t e = report.find(']', b);
+  const std::string items = report.substr(b + 16, e - b - 16);
+  return items.empty() ? 0 : count_of(items, ",") + 1;
+}
+
+struct OptionCase {
+  const char* name;
+  std::function<Outcome()> run;
+  int exit_code;
+  std::string stderr_has;
+  std::function<void(const Outcome&)> check;
+};
+
+void PrintTo(const OptionCase& c, std::ostream* os) { *os << c.name; }
+
+class FitsurfOption : public ::testing::TestWithParam<OptionCase> {};
+
+TEST_P(FitsurfOption, ParsesAndHasItsEffect) {
+  const OptionCase& c = GetParam();
+  const Outcome run = c.run();
+  ASSERT_EQ(run.r.exit_code, c.exit_code) << run.r.err;
+  if (!c.stderr_has.empty()) {
+    EXPECT_NE(run.r.err.find(c.stderr_has), std::string::npos) << run.r.err;
+  }
+  if (c.check) c.check(run);
+}
+
+auto on(std::vector<std::string> args, const std::string& (*cloud)() = dome) {
+  return [args, cloud] { return fit(args, cloud()); };
+}
+OptionCase bad(const char* name, std::vector<std::string> args, std::string option) {
+  return {name, on(std::move(args)), 2, std::move(option), nullptr};
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Options, FitsurfOption,
+    ::testing::Values(
+        // Selection
+        OptionCase{"keep_above", on({"--keep-above", "0,0,1,-25"}), 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_GT(json_number(r.report, "dropped_below", "selection"), 100);
+                     EXPECT_EQ(json_number(r.report, "dropped_below", "selection") +
+                                   json_number(r.report, "fitted_points", "selection"),
+                               1500);
+                   }},
+        bad("keep_above_zero_normal", {"--keep-above", "0,0,0,5"}, "--keep-above"),
+        OptionCase{"plane_threshold_mm", on({"--drop-plane", "--plane-threshold-mm", "0.3"}, dome_on_plate), 0, "",
+                   [](const Outcome& r) {
+                     // The plate's points lie within 0.2 mm of z = 0: all of them belong to the plane.
+                     EXPECT_EQ(json_number(r.report, "dropped_plane", "selection"), 400);
+                     // Within 25 mm the dome's foot (z = 20 to 25 mm) belongs to the plane too.
+                     const Outcome wide = fit({"--drop-plane", "--plane-threshold-mm", "25"}, dome_on_plate());
+                     ASSERT_EQ(wide.r.exit_code, 0) << wide.r.err;
+                     EXPECT_GT(json_number(wide.report, "dropped_plane", "selection"), 500);
+                   }},
+        bad("plane_threshold_mm_zero", {"--plane-threshold-mm", "0"}, "--plane-threshold-mm"),
+        // Surface
+        OptionCase{"degree_u", on({"--degree-u", "2"}), 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(json_number(r.report, "degree_u", "surface"), 2);
+                     EXPECT_EQ(json_number(r.report, "degree_v", "surface"), 3);
+                     EXPECT_NE(r.r.out.find("\ndegrees 2 3\n"), std::string::npos) << r.r.out.substr(0, 100);
+                   }},
+        bad("degree_u_26", {"--degree-u", "26"}, "--degree-u"),
+        OptionCase{"degree_v", on({"--degree-v", "4"}), 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(json_number(r.report, "degree_v", "surface"), 4);
+                     EXPECT_NE(r.r.out.find("\ndegrees 3 4\n"), std::string::npos) << r.r.out.substr(0, 100);
+                   }},
+        bad("degree_v_zero", {"--degree-v", "0"}, "--degree-v"),
+        OptionCase{"plane_xy", on({"--plane", "xy"}), 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(json_raw(r.report, "parameter_plane", "surface"), "\"xy\"");
+                     EXPECT_EQ(json_raw(r.report, "plane_normal", "surface"), "[0");
+                   }},
+        bad("plane_bad", {"--plane", "yz"}, "--plane"),
+        OptionCase{"outline_convex", on({"--outline", "convex"}), 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(json_raw(r.report, "outline", "surface"), "\"convex\"");
+                     EXPECT_GE(json_number(r.report, "boundary_vertices", "surface"), 3);
+                     const Outcome none = fit({"--outline", "none"});
+                     EXPECT_EQ(json_number(none.report, "boundary_vertices", "surface"), 0);
+                   }},
+        bad("outline_bad", {"--outline", "round"}, "--outline"),
+        OptionCase{"max_slope_deg", on({"--max-slope-deg", "5"}), 1, "slope", nullptr},
+        bad("max_slope_deg_above_90", {"--max-slope-deg", "91"}, "--max-slope-deg"),
+        OptionCase{"outline_cell_mm", on({"--outline", "concave", "--outline-cell-mm", "20"}), 0, "",
+                   [](const Outcome& r) {
+                     const Outcome fine = fit({"--outline", "concave", "--outline-cell-mm", "4"});
+                     ASSERT_EQ(fine.r.exit_code, 0) << fine.r.err;
+                     // A coarser grid traces the outline with fewer vertices.
+                     EXPECT_LT(json_number(r.report, "boundary_vertices", "surface"),
+                               json_number(fine.report, "boundary_vertices", "surface"));
+                   }},
+        // Solving
+        OptionCase{"cg_tolerance", on({"--solver", "cg", "--cg-tolerance", "1e-14"}), 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(json_raw(r.report, "solver", "fit"), "\"cg\"");
+                     EXPECT_LT(json_number(r.report, "rms_mm", "residuals"), 0.02);
+                   }},
+        bad("cg_tolerance_zero", {"--solver", "cg", "--cg-tolerance", "0"}, "--cg-tolerance"),
+        OptionCase{"no_correction", on({"--no-correction"}), 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(json_raw(r.report, "parameter_correction", "fit"), "false");
+                     EXPECT_EQ(json_raw(fit({}).report, "parameter_correction", "fit"), "true");
+                   }},
+        OptionCase{"max_rounds", on({"--max-rounds", "1"}), 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(rounds(r.report), 1u) << r.report;
+                     EXPECT_GT(rounds(fit({}).report), 1u);
+                   }},
+        bad("max_rounds_zero", {"--max-rounds", "0"}, "--max-rounds"),
+        OptionCase{"min_gain", on({"--min-gain", "0.9"}), 0, "",
+                   // No round after the first lowers the RMS by 90 %: the second is the last.
+                   [](const Outcome& r) { EXPECT_EQ(rounds(r.report), 2u) << r.report; }},
+        bad("min_gain_one", {"--min-gain", "1"}, "--min-gain"),
+        OptionCase{"robust_threshold", on({"--robust", "reject", "--robust-threshold", "3"}), 0, "",
+                   [](const Outcome& r) {
+                     const double scale = json_number(r.report, "robust_scale_mm", "fit");
+                     EXPECT_NEAR(json_number(r.report, "robust_cutoff_mm", "fit"), 3 * scale, 1e-9 + 1e-9 * scale);
+                   }},
+        bad("robust_threshold_negative", {"--robust-threshold", "-1"}, "--robust-threshold"),
+        OptionCase{"robust_floor_mm", on({"--robust", "reject", "--robust-floor-mm", "0.5"}), 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_GE(json_number(r.report, "robust_scale_mm", "fit"), 0.5);
+                     EXPECT_EQ(json_number(r.report, "outliers", "fit"), 0);
+                   }},
+        bad("robust_floor_mm_zero", {"--robust-floor-mm", "0"}, "--robust-floor-mm"),
+        // Tolerance search
+        OptionCase{"cv_folds", on({"--tolerance", "0.2", "--cv-folds", "3"}), 0, "",
+                   [](const Outcome& r) { EXPECT_EQ(json_number(r.report, "folds", "tolerance"), 3); }},
+        bad("cv_folds_one", {"--tolerance", "0.05", "--cv-folds", "1"}, "--cv-folds"),
+        OptionCase{"max_poles", on({"--tolerance", "0.001", "--max-poles", "8"}), 1, "", nullptr},
+        bad("max_poles_below_degree", {"--tolerance", "0.05", "--max-poles", "3"}, "--max-poles")),
+    [](const auto& info) { return std::string(info.param.name); });
+
+}  // namespace
+}  // namespace photomill::fitsurf
