@@ -49,6 +49,19 @@ const std::string& dome_on_plate() {
   return text;
 }
 
+// The dome over an L-shaped footprint (its x > 0, y > 0 quarter left out): a concave outline whose
+// notch a fine grid traces and a coarse one does not.
+const std::string& dome_l_shaped() {
+  static const std::string text = [] {
+    std::vector<Eigen::Vector3d> pts;
+    for (const auto& p : fitsurf::test::sample(fitsurf::test::shape("dome"), 3000, 0.01, 41)) {
+      if (!(p.x() > 0 && p.y() > 0)) pts.push_back(p);
+    }
+    return xyz_text(pts);
+  }();
+  return text;
+}
+
 struct Outcome {
   ToolResult r;
   std::string report;
@@ -153,9 +166,9 @@ INSTANTIATE_TEST_SUITE_P(
         bad("outline_bad", {"--outline", "round"}, "--outline"),
         OptionCase{"max_slope_deg", on({"--max-slope-deg", "5"}), 1, "slope", nullptr},
         bad("max_slope_deg_above_90", {"--max-slope-deg", "91"}, "--max-slope-deg"),
-        OptionCase{"outline_cell_mm", on({"--outline", "concave", "--outline-cell-mm", "20"}), 0, "",
+        OptionCase{"outline_cell_mm", on({"--outline", "concave", "--outline-cell-mm", "20"}, dome_l_shaped), 0, "",
                    [](const Outcome& r) {
-                     const Outcome fine = fit({"--outline", "concave", "--outline-cell-mm", "4"});
+                     const Outcome fine = fit({"--outline", "concave", "--outline-cell-mm", "4"}, dome_l_shaped());
                      ASSERT_EQ(fine.r.exit_code, 0) << fine.r.err;
                      // A coarser grid traces the outline with fewer vertices.
                      EXPECT_LT(json_number(r.report, "boundary_vertices", "surface"),
