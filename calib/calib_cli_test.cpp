@@ -171,6 +171,15 @@ INSTANTIATE_TEST_SUITE_P(
         CliCase{"two_controls", {"--chessboard", "9x6", "--charuco", "5x7"}, kHeader, 2, "excludes"},
         CliCase{"unknown_optimizer", {"--chessboard", "9x6", "--optimizer", "newton"}, kHeader, 2, "newton"},
         CliCase{"image_size_unknown", {"--chessboard", "9x6"}, kHeader + "nowhere.jpg,0,1,2\n", 2, "--image-size"},
+        // A size that cannot hold the observations (1 x 1 was accepted, exit 0): usage error.
+        CliCase{"image_size_too_small", {"--chessboard", "9x6", "--image-size", "1x1"},
+                kHeader + "a.jpg,0,1,2\n", 2, "point 0 of a.jpg at (1, 2) px lies off a 1 x 1 px image"},
+        CliCase{"observation_beyond_the_image", {"--chessboard", "9x6", "--image-size", "640x480"},
+                kHeader + "a.jpg,0,1,2\na.jpg,1,639.6,2\n", 2, "point 1 of a.jpg at (639.6, 2) px lies off"},
+        // The size read from the image the observations name (640 x 480) does not hold them: input error.
+        CliCase{"observation_beyond_the_image_file", {"--chessboard", "9x6"},
+                kHeader + kData + "/opencv-chessboard/left01.jpg,0,700,2\n", 1,
+                "at (700, 2) px lies off a 640 x 480 px image (its size read from the image file)"},
         CliCase{"no_matching_ids", {"--chessboard", "3x3", "--image-size", "640x480"}, kHeader + "a.jpg,99,1,2\n", 1,
                 "no observation refers to a control point"},
         CliCase{"too_few_points", {"--chessboard", "9x6", "--image-size", "640x480"},

@@ -3,6 +3,7 @@
 
 #include <map>
 #include <set>
+#include <sstream>
 
 #include "geometry/board.hpp"
 #include "formats/error.hpp"
@@ -123,16 +124,46 @@ void check_observations(const CalibCli& c, const std::vector<Observation>& obser
                        std::to_string(control.size()) + " control points" + of + "): check the point ids");
 }
 
+namespace {
+
+// The first observation that lies off a w x h image, if any. OpenCV's pixel centres are the
+// integers, so the image covers [-0.5, w - 0.5] x [-0.5, h - 0.5].
+const Observation* off_the_image(const std::vector<Observation>& observations, cv::Size size) {
+  for (const Observation& o : observations) {
+    if (!(o.u_px >= -0.5 && o.u_px <= size.width - 0.5 && o.v_px >= -0.5 && o.v_px <= size.height - 0.5)) return &o;
+  }
+  return nullptr;
+}
+
+std::string describe(const Observation& o, cv::Size size) {
+  std::ostringstream s;
+  s << "point " << o.point_id << " of " << o.image << " at (" << o.u_px << ", " << o.v_px << ") px lies off a "
+    << size.width << " x " << size.height << " px image";
+  return s.str();
+}
+
+}  // namespace
+
 cv::Size resolve_image_size(const CalibCli& c, const std::vector<Observation>& observations) {
   if (!c.image_size.empty()) {
     const auto [w, h] = geometry::parse_grid(c.image_size, "--image-size");
     if (w <= 0 || h <= 0) throw UsageError("--image-size: width and height must be positive");
-    return {w, h};
+    const cv::Size size(w, h);
+    if (const Observation* o = off_the_image(observations, size)) {
+      throw UsageError("--image-size " + c.image_size + " is too small for the observations: " + describe(*o, size));
+    }
+    return size;
   }
   const auto size = image_size_from_files(observations);
   if (!size) {
     throw UsageError("the image size is unknown: give --image-size WxH (the images the observations name "
                      "cannot be read from here)");
+  }
+  if (const Observation* o = off_the_image(observations, *size)) {
+    std::string sources;
+    for (const auto& p : c.observations) sources += (sources.empty() ? "" : ", ") + tool::source_name(p);
+    throw InputError(sources, 0, describe(*o, *size) + " (its size read from the image file): the observations "
+                                 "do not belong to that image");
   }
   return *size;
 }

@@ -121,10 +121,12 @@ void add_options(CLI::App& app, Cli& c) {
   const std::string tol = "Tolerance mode";
   app.add_option("--tolerance", c.tolerance_mm,
                  "Grow the net until the cross-validated deviation is at most this (mm); fails if it cannot be met")
+      ->each([&c](const std::string&) { c.tolerance_given = true; })
       ->group(tol);
   app.add_option("--tolerance-stat", c.tolerance_stat, "Deviation compared with --tolerance")
       ->capture_default_str()->check(CLI::IsMember({"rms", "p90", "p95", "p99", "max"}))->group(tol);
-  app.add_option("--cv-folds", c.cv_folds, "Cross-validation folds")->capture_default_str()->group(tol);
+  app.add_option("--cv-folds", c.cv_folds, "Cross-validation folds")
+      ->capture_default_str()->check(CLI::Range(2, 1000))->group(tol);
   app.add_option("--max-poles", c.max_poles, "Largest net tried, poles per direction")->capture_default_str()->group(tol);
 }
 
@@ -176,7 +178,7 @@ Options to_options(const Cli& c) {
   if (!(o.select.plane_threshold_mm > 0)) throw UsageError("--plane-threshold-mm must be positive");
   if (!(c.mesh_step_mm > 0)) throw UsageError("--mesh-step-mm must be positive");
   if (!c.mesh.empty()) mesh_format_for(c.mesh);
-  if (c.tolerance_mm != 0) {
+  if (c.tolerance_given) {
     ToleranceOptions t;
     t.tolerance_mm = c.tolerance_mm;
     t.stat = c.tolerance_stat == "p90"   ? ToleranceStat::P90

@@ -25,7 +25,8 @@ struct Cli {
   std::string prefit = "auto";
   bool no_correction = false;
   std::vector<double> keep_box, keep_above;
-  double tolerance_mm = 0;       // 0: fixed net
+  double tolerance_mm = 0;       // used only when --tolerance is given
+  bool tolerance_given = false;  // --tolerance on the command line: tolerance mode, else a fixed net
   std::string tolerance_stat = "rms";
   int cv_folds = 4;
   int max_poles = 200;

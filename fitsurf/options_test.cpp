@@ -212,6 +212,9 @@ INSTANTIATE_TEST_SUITE_P(
         OptionCase{"cv_folds", on({"--tolerance", "0.2", "--cv-folds", "3"}), 0, "",
                    [](const Outcome& r) { EXPECT_EQ(json_number(r.report, "folds", "tolerance"), 3); }},
         bad("cv_folds_one", {"--tolerance", "0.05", "--cv-folds", "1"}, "--cv-folds"),
+        bad("cv_folds_one_without_tolerance", {"--cv-folds", "1"}, "--cv-folds"),
+        bad("tolerance_zero", {"--tolerance", "0"}, "--tolerance"),
+        bad("tolerance_negative", {"--tolerance=-0.1"}, "--tolerance"),
         OptionCase{"max_poles", on({"--tolerance", "0.001", "--max-poles", "8"}), 1, "", nullptr},
         bad("max_poles_below_degree", {"--tolerance", "0.05", "--max-poles", "3"}, "--max-poles")),
     [](const auto& info) { return std::string(info.param.name); });
