@@ -539,7 +539,6 @@ EdgeFit refine_pass(const cv::Mat& grey, const Levels& levels, const std::array<
   std::array<EdgeFrame, 4> frames;
   std::array<double, 4> window{};
   std::array<double, 4> sin_angle{};
-  double mean_side = 0;
   for (int e = 0; e < 4; ++e) {
     EdgeFrame& f = frames[e];
     f.origin = q[e];
@@ -552,7 +551,6 @@ EdgeFit refine_pass(const cv::Mat& grey, const Levels& levels, const std::array<
     f.d = v / f.length;
     f.n = Eigen::Vector2d(-f.d.y(), f.d.x());
     if (f.n.dot(centre - q[e]) > 0) f.n = -f.n;  // outwards, towards the white quiet zone
-    mean_side += 0.25 * f.length;
     const double angle = interior_angle(q, e);
     sin_angle[e] = std::sin(angle);
     if (sin_angle[e] < 0.2) {

@@ -56,8 +56,9 @@ MeshFormat mesh_format_for(const std::string& path) {
 
 MeshCounts write_mesh(std::ostream& out, const BSplineSurface& s, MeshFormat format, const MeshOptions& o) {
   if (!(o.step_mm > 0)) throw UsageError("--mesh-step-mm must be positive");
-  const auto [u0, u1] = domain_u(s);
-  const auto [v0, v1] = domain_v(s);
+  // Plain variables, not structured bindings: lambdas capture them in clang 14 too.
+  const std::pair<double, double> du = domain_u(s), dv = domain_v(s);
+  const double u0 = du.first, u1 = du.second, v0 = dv.first, v1 = dv.second;
   auto samples = [&](double len) {
     return std::clamp(static_cast<int>(std::ceil(len / o.step_mm)) + 1, 2, std::max(2, o.max_samples));
   };

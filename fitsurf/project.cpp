@@ -12,8 +12,9 @@ namespace photomill::fitsurf {
 
 FootPoint project_point(const BSplineSurface& s, const Eigen::Vector3d& q, Eigen::Vector2d uv,
                         const ProjectionOptions& options) {
-  const auto [u0, u1] = domain_u(s);
-  const auto [v0, v1] = domain_v(s);
+  // Plain variables, not structured bindings: lambdas capture them in clang 14 too.
+  const std::pair<double, double> du = domain_u(s), dv = domain_v(s);
+  const double u0 = du.first, u1 = du.second, v0 = dv.first, v1 = dv.second;
   auto clamp = [&](Eigen::Vector2d x) {
     return Eigen::Vector2d(std::clamp(x.x(), u0, u1), std::clamp(x.y(), v0, v1));
   };

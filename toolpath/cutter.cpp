@@ -131,8 +131,9 @@ double DropCutter::g_at(int i, int j, const Eigen::Vector2d& xy) const {
 DropCutter::Contact DropCutter::refine(const Eigen::Vector2d& xy, const Eigen::Vector2d& uv0) const {
   // Damped Newton ascent on g(u, v) (see BallHeight), kept inside the parameter domain; steps
   // longer than one sample spacing on the surface are shortened (a trust region).
-  const auto [u0, u1] = domain_u(*surface_);
-  const auto [v0, v1] = domain_v(*surface_);
+  // Plain variables, not structured bindings: lambdas capture them in clang 14 too.
+  const std::pair<double, double> du = domain_u(*surface_), dv = domain_v(*surface_);
+  const double u0 = du.first, u1 = du.second, v0 = dv.first, v1 = dv.second;
   const auto clamp_uv = [&](Eigen::Vector2d uv) {
     return Eigen::Vector2d(std::clamp(uv.x(), u0, u1), std::clamp(uv.y(), v0, v1));
   };
