@@ -106,10 +106,20 @@ std::vector<ControlPoint> load_control(const CalibCli& c) {
   return geometry::board_control_points(spec);
 }
 
-void check_observations(const CalibCli& c, const std::vector<Observation>& observations,
-                        const std::vector<ControlPoint>& control) {
+namespace {
+
+// The observation files' names, for errors about their content.
+std::string observation_sources(const CalibCli& c) {
   std::string sources;
   for (const auto& p : c.observations) sources += (sources.empty() ? "" : ", ") + tool::source_name(p);
+  return sources;
+}
+
+}  // namespace
+
+void check_observations(const CalibCli& c, const std::vector<Observation>& observations,
+                        const std::vector<ControlPoint>& control) {
+  const std::string sources = observation_sources(c);
   if (observations.empty()) throw InputError(sources, 0, "no observations: the input holds only a header");
   std::set<PointId> ids;
   for (const auto& p : control) ids.insert(p.point_id);
@@ -160,10 +170,9 @@ cv::Size resolve_image_size(const CalibCli& c, const std::vector<Observation>& o
                      "cannot be read from here)");
   }
   if (const Observation* o = off_the_image(observations, *size)) {
-    std::string sources;
-    for (const auto& p : c.observations) sources += (sources.empty() ? "" : ", ") + tool::source_name(p);
-    throw InputError(sources, 0, describe(*o, *size) + " (its size read from the image file): the observations "
-                                 "do not belong to that image");
+    throw InputError(observation_sources(c), 0,
+                     describe(*o, *size) + " (its size read from the image file): the observations do not belong "
+                                           "to that image");
   }
   return *size;
 }
