@@ -58,8 +58,10 @@ void add_options(CLI::App& app, Cli& c) {
                  "Knot placement: clamped uniform, averaged over the data (NURBS Book 9.69), or adaptive: placed by "
                  "the shape of a first uniform fit, denser where it bends sharply (de Boor's NEWNOT; twice the time)")
       ->capture_default_str()->check(CLI::IsMember({"uniform", "averaged", "adaptive"}))->group(srf);
-  app.add_option("--plane", c.plane, "Parameter plane: best-fit plane of the points (pca) or world xy")
-      ->capture_default_str()->check(CLI::IsMember({"pca", "xy"}))->group(srf);
+  app.add_option("--plane", c.plane,
+                 "Parameter plane: best-fit plane of the points (pca), world xy, or auto: pca unless xy holds the "
+                 "data better as a height field (their steepest slopes over it lower by more than 1 degree)")
+      ->capture_default_str()->check(CLI::IsMember({"auto", "pca", "xy"}))->group(srf);
   app.add_option("--smoothing", f.smoothing_mm4,
                  "Smoothing weight lambda, mm^4 (order 2; mm^6 with --smoothing-order 3): its 4th (6th) root is the "
                  "length below which detail is smoothed away; 0 = none")
@@ -84,7 +86,8 @@ void add_options(CLI::App& app, Cli& c) {
                  "points), none")
       ->capture_default_str()->check(CLI::IsMember({"auto", "concave", "convex", "none"}))->group(srf);
   app.add_option("--max-slope-deg", f.fold.max_slope_deg,
-                 "Steepest slope of the fitted surface over its plane inside the outline; steeper (or folding) fails")
+                 "Steepest slope of the fitted surface over its plane inside the outline where the data are not as "
+                 "steep (there it may follow them: their slope + 3 degrees, at most 89); steeper, or folding, fails")
       ->capture_default_str()->check(CLI::Range(1.0, 90.0))->group(srf);
   app.add_option("--outline-cell-mm", o.outline.cell_mm, "Grid cell of the concave outline (0 = 3 mean point spacings)")
       ->capture_default_str()->group(srf);
@@ -153,7 +156,7 @@ Options to_options(const Cli& c) {
   o.fit.knots = c.knots == "averaged"   ? KnotPlacement::Averaged
                 : c.knots == "adaptive" ? KnotPlacement::Adaptive
                                         : KnotPlacement::Uniform;
-  o.fit.plane = c.plane == "xy" ? PlaneChoice::Xy : PlaneChoice::Pca;
+  o.fit.plane = c.plane == "xy" ? PlaneChoice::Xy : c.plane == "pca" ? PlaneChoice::Pca : PlaneChoice::Auto;
   o.fit.solver = c.solver == "cg" ? LinearSolver::Cg : LinearSolver::Ldlt;
   o.fit.robust = c.robust == "none"    ? RobustLoss::None
                  : c.robust == "huber" ? RobustLoss::Huber

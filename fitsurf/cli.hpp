@@ -21,7 +21,7 @@ struct Cli {
   int preview_width_px = 1200;
   double mesh_step_mm = 1.0;
   std::string net = "30x30";
-  std::string knots = "uniform", plane = "pca", solver = "ldlt", robust = "reject", outline = "auto";
+  std::string knots = "uniform", plane = "auto", solver = "ldlt", robust = "reject", outline = "auto";
   std::string prefit = "auto";
   bool no_correction = false;
   std::vector<double> keep_box, keep_above;

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <string>
 
 #include <Eigen/IterativeLinearSolvers>
@@ -335,6 +336,44 @@ void check_height_field(const std::vector<Eigen::Vector3d>& local, const Paramet
   }
 }
 
+// The sample of a check_samples x check_samples grid in (u, v) where the surface's slope over its
+// plane (the angle between S_u x S_v and the plane normal; beyond 90 degrees it folds) most exceeds
+// what FoldOptions allows there: max_slope_deg, or as steep as the data near the surface point
+// plus data_margin_deg, at most steepest_deg. Only samples `inside` are looked at.
+struct SlopeExcess {
+  double excess_deg = -std::numeric_limits<double>::infinity();  // slope - allowed (<= 0: none)
+  double slope_deg = 0, allowed_deg = 0, data_deg = -1;
+  Eigen::Vector2d uv = Eigen::Vector2d::Zero();
+};
+template <class Inside>
+SlopeExcess steepest_excess(const BSplineSurface& local_surface, const DataSlope& data, const ParameterBox& box,
+                            const FoldOptions& o, const Inside& inside) {
+  const int n = std::max(2, o.check_samples);
+  // The widest knot span, mm: the data within it shape the surface at a point.
+  double span_mm = 0;
+  for (int dir : {0, 1}) {
+    const std::vector<double>& T = dir == 0 ? local_surface.knots_u : local_surface.knots_v;
+    const double length = dir == 0 ? box.length_u_mm() : box.length_v_mm();
+    for (std::size_t k = 0; k + 1 < T.size(); ++k) span_mm = std::max(span_mm, (T[k + 1] - T[k]) * length);
+  }
+  SlopeExcess worst;
+  for (int a = 0; a < n; ++a) {
+    for (int b = 0; b < n; ++b) {
+      const Eigen::Vector2d uv((a + 0.5) / n, (b + 0.5) / n);
+      if (!inside(uv)) continue;
+      const SurfaceDerivatives d = evaluate(local_surface, uv.x(), uv.y(), 1);
+      const Eigen::Vector3d nrm = d.su.cross(d.sv);
+      const double len = nrm.norm();
+      const double c = len > 0 ? nrm.z() / len : -1.0;
+      const double slope = std::acos(std::clamp(c, -1.0, 1.0)) * 180 / std::numbers::pi;
+      const double near = data.near(d.p.x(), d.p.y(), span_mm);
+      const double allowed = std::max(o.max_slope_deg, std::min(near + o.data_margin_deg, o.steepest_deg));
+      if (slope - allowed > worst.excess_deg) worst = {slope - allowed, slope, allowed, near, uv};
+    }
+  }
+  return worst;
+}
+
 // Adaptive knots come from a first fit (fit_net); the coarse nets of the screening take uniform ones.
 std::vector<double> knots_for(KnotPlacement placement, const std::vector<Eigen::Vector2d>& uv, int num_poles,
                               int degree, int coordinate) {
@@ -369,6 +408,11 @@ void validate(const FitOptions& o) {
   need(o.cg_tolerance > 0, "--cg-tolerance must be positive");
   need(o.cg_max_iterations > 0, "the CG iterations must be positive");
   need(o.threads >= 0, "--threads must be >= 0");
+  need(o.fold.data_margin_deg >= 0 && o.fold.steepest_deg > 0 && o.fold.steepest_deg <= 90,
+       "the fold check's data margin must be >= 0 and its steepest slope in (0, 90] degrees");
+  need(o.prefer_pca_deg >= 0 && o.slope.cell_spacings > 0 && o.slope.min_points >= 3 &&
+           o.slope.score_quantile >= 0 && o.slope.score_quantile <= 1,
+       "the plane choice's options are out of range");
 }
 
 std::vector<double> averaged_knots(std::vector<double> params, int num_poles, int p) {
@@ -487,6 +531,7 @@ FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& 
   require_points(points.size(), o);
   const int p = o.degree_u, q = o.degree_v;
   FitResult r;
+  r.plane = o.plane;
   r.frame = parameter_frame(points, o.plane, o.frame);
   if (is_flat(r.frame, o.frame)) log::info("the points are flat (a plane fits them): the surface will be a plane");
   std::vector<Eigen::Vector3d> local(points.size());
@@ -495,6 +540,7 @@ FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& 
   });
   r.box = parameter_box(local);
   check_height_field(local, r.box, r.frame, o.fold);
+  r.data_slope = data_slope(local, r.box, o.slope);
   std::vector<Eigen::Vector2d> uv(points.size());
   for (std::size_t k = 0; k < points.size(); ++k) uv[k] = r.box.to_uv(local[k]);
 
@@ -584,6 +630,15 @@ FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& 
       w = std::move(screen);
     }
   }
+  // The last round whose surface kept within the slopes FoldOptions allows (stop_before_fold).
+  struct Kept {
+    BSplineSurface surface;
+    std::vector<Eigen::Vector2d> uv;
+    std::vector<double> d;
+  };
+  std::optional<Kept> kept;
+  const int grid = std::max(2, o.fold.check_samples);
+  std::vector<std::uint8_t> occupied;
   for (int round = 0; round < o.max_rounds; ++round) {
     r.local_surface = make_surface(space, solver.solve(uv, local, total(w)));
     r.uv = uv;
@@ -591,6 +646,29 @@ FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& 
       project_points(r.local_surface, local, r.uv, d, o.projection, o.threads);
     } else {
       parameter_residuals(r.local_surface, local, uv, d, o.threads);
+    }
+    if (o.stop_before_fold && o.parameter_correction) {
+      // The slope check of check_no_fold, on the grid cells that hold a foot point.
+      occupied.assign(static_cast<std::size_t>(grid) * grid, 0);
+      for (const auto& x : r.uv) {
+        const int a = std::clamp(static_cast<int>(x.x() * grid), 0, grid - 1);
+        const int b = std::clamp(static_cast<int>(x.y() * grid), 0, grid - 1);
+        occupied[static_cast<std::size_t>(a) * grid + b] = 1;
+      }
+      const SlopeExcess e = steepest_excess(r.local_surface, r.data_slope, r.box, o.fold, [&](const Eigen::Vector2d& x) {
+        return occupied[static_cast<std::size_t>(x.x() * grid) * grid + static_cast<std::size_t>(x.y() * grid)] != 0;
+      });
+      if (e.excess_deg > 0 && kept) {
+        log::debug("round " + std::to_string(round + 1) + " undone: slope " + fixed(e.slope_deg, 1) +
+                   " degrees at u " + fixed(e.uv.x(), 3) + ", v " + fixed(e.uv.y(), 3) + " (at most " +
+                   fixed(e.allowed_deg, 1) + " allowed there)");
+        r.local_surface = std::move(kept->surface);
+        r.uv = std::move(kept->uv);
+        d = std::move(kept->d);
+        r.stopped_at_round = round;
+        break;
+      }
+      if (e.excess_deg <= 0) kept = Kept{r.local_surface, r.uv, d};
     }
     const double rms = weighted_rms(d, total(w));
     r.round_rms_mm.push_back(rms);
@@ -651,9 +729,31 @@ FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& 
 
 }  // namespace
 
-FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptions& o,
+FitOptions with_plane_chosen(const std::vector<Eigen::Vector3d>& points, const FitOptions& options, double& pca_deg,
+                             double& xy_deg) {
+  pca_deg = xy_deg = -1;
+  if (options.plane != PlaneChoice::Auto) return options;
+  require_points(points.size(), options);
+  FitOptions chosen = options;
+  chosen.plane = choose_plane(points, options.frame, options.slope, options.prefer_pca_deg, &pca_deg, &xy_deg);
+  if (chosen.plane == PlaneChoice::Xy) {
+    log::info("parameter plane xy: the data's steepest slopes are " + fixed(xy_deg, 1) + " degrees over it, " +
+              fixed(pca_deg, 1) + " over their best-fit plane");
+  }
+  return chosen;
+}
+
+FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptions& options,
                       const std::vector<double>& point_weights) {
-  validate(o);
+  validate(options);
+  if (options.plane == PlaneChoice::Auto) {
+    double pca = 0, xy = 0;
+    FitResult r = fit_surface(points, with_plane_chosen(points, options, pca, xy), point_weights);
+    r.pca_slope_deg = pca;
+    r.xy_slope_deg = xy;
+    return r;
+  }
+  const FitOptions& o = options;
   const double n = static_cast<double>(points.size());
   const double poles = static_cast<double>(o.poles_u) * o.poles_v;
   if (o.robust == RobustLoss::None || !o.robust_on_coarser_net || n >= o.robust_min_redundancy * poles) {
@@ -692,33 +792,34 @@ FitResult fit_surface(const std::vector<Eigen::Vector3d>& points, const FitOptio
 }
 
 void check_no_fold(const FitResult& fit, const std::vector<Eigen::Vector2d>& boundary, const FoldOptions& o) {
-  const int n = std::max(2, o.check_samples);
-  double worst = std::numeric_limits<double>::infinity();
-  Eigen::Vector2d worst_uv(0, 0);
-  for (int a = 0; a < n; ++a) {
-    for (int b = 0; b < n; ++b) {
-      const Eigen::Vector2d uv((a + 0.5) / n, (b + 0.5) / n);
-      if (!boundary.empty() && !point_in_polygon(boundary, uv)) continue;
-      const SurfaceDerivatives d = evaluate(fit.local_surface, uv.x(), uv.y(), 1);
-      const Eigen::Vector3d nrm = d.su.cross(d.sv);
-      const double len = nrm.norm();
-      const double c = len > 0 ? nrm.z() / len : -1.0;
-      if (c < worst) {
-        worst = c;
-        worst_uv = uv;
-      }
-    }
+  const SlopeExcess e = steepest_excess(fit.local_surface, fit.data_slope, fit.box, o, [&](const Eigen::Vector2d& uv) {
+    return boundary.empty() || point_in_polygon(boundary, uv);
+  });
+  if (e.excess_deg <= 0) return;
+  const Eigen::Vector3d x = surface_point(fit.surface, e.uv.x(), e.uv.y());
+  std::string what = e.slope_deg >= 90 ? "the fitted surface folds over its projection plane near " + at_mm(x) +
+                                             " (slope " + fixed(e.slope_deg, 1) + " degrees"
+                                       : "the fitted surface is steeper than allowed near " + at_mm(x) + " (" +
+                                             fixed(e.slope_deg, 1) + " degrees over the " + std::string(fit.plane == PlaneChoice::Xy ? "xy" : "pca") +
+                                             " plane against at most " + fixed(e.allowed_deg, 1);
+  what += ", u " + fixed(e.uv.x(), 3) + ", v " + fixed(e.uv.y(), 3) + "; the data there ";
+  what += e.data_deg >= 0 ? "are at most " + fixed(e.data_deg, 1) + " degrees steep)" : "are too sparse for a slope)";
+  std::string advice;
+  if (e.data_deg >= o.steepest_deg - o.data_margin_deg) {
+    advice = "the data are not a height field over that plane (overhangs, vertical walls): select the part's top "
+             "(--keep-above, --keep-box)";
+  } else {
+    advice = "the surface curls beyond the data between or at the edge of the points: a larger --smoothing keeps it "
+             "flatter, --no-correction keeps the points where they project";
   }
-  if (worst < std::cos(o.max_slope_deg * std::numbers::pi / 180)) {
-    const Eigen::Vector3d x = surface_point(fit.surface, worst_uv.x(), worst_uv.y());
-    throw GeometryError("the fitted surface folds over its projection plane, or is steeper than " +
-                        sig(o.max_slope_deg, 3) + " degrees, near " + at_mm(x) + " (u " + fixed(worst_uv.x(), 3) +
-                        ", v " + fixed(worst_uv.y(), 3) + ", slope " +
-                        fixed(std::acos(std::clamp(worst, -1.0, 1.0)) * 180 / std::numbers::pi, 1) +
-                        " degrees): the data are not a height field over that plane (overhangs, vertical walls); "
-                        "select the part's top (--keep-above, --keep-box), or allow steeper slopes (--max-slope-deg); "
-                        "outliers near the edge of the data can also curl it: try --robust reject");
+  if (fit.pca_slope_deg >= 0) {
+    advice += "; the data's steepest slopes are " + fixed(fit.pca_slope_deg, 1) + " degrees over the pca plane and " +
+              fixed(fit.xy_slope_deg, 1) + " over xy (--plane)";
+  } else {
+    advice += "; --plane auto chooses the plane that holds the data best";
   }
+  advice += "; --max-slope-deg " + sig(o.max_slope_deg, 3) + " is the limit where the data are not steep";
+  throw GeometryError(what + ": " + advice);
 }
 
 }  // namespace photomill::fitsurf

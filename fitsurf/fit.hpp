@@ -38,6 +38,7 @@
 
 #include "fitsurf/frame.hpp"
 #include "fitsurf/project.hpp"
+#include "fitsurf/slope.hpp"
 #include "formats/surface.hpp"
 
 namespace photomill::fitsurf {
@@ -62,6 +63,12 @@ struct FoldOptions {
   // this inside the outline. A sparse folded cloud is interpolated by a height field that turns
   // (nearly) vertical between its layers; a part with vertical walls is not a height field either.
   double max_slope_deg = 84;
+  // ... except where the data themselves are steep (their cell slopes, slope.hpp, within one knot
+  // span of the surface point, as far as its poles reach): there the surface may be as steep as they are plus
+  // data_margin_deg, never steeper than steepest_deg (beyond 90 it folds over the plane). A range
+  // scan's flank at 84 degrees has to be followed by a surface at 84-87.
+  double data_margin_deg = 3;
+  double steepest_deg = 89;
   int check_samples = 64;  // per direction
 };
 
@@ -77,7 +84,12 @@ struct FitOptions {
   // ... and every span's |D^(p+1) f| h^(p+1) (its error scale) counts at least this much, so
   // that a plane, or a shape flat to a tenth of a micrometre, keeps uniform knots.
   double adaptive_knot_floor_mm = 1e-4;
-  PlaneChoice plane = PlaneChoice::Pca;
+  // Auto: the best-fit plane, or world xy where its steepest data slope is lower by more than
+  // prefer_pca_deg (choose_plane): a scan whose flank turns past 89 degrees against its best-fit
+  // plane may be at 84 against the scanner's xy.
+  PlaneChoice plane = PlaneChoice::Auto;
+  double prefer_pca_deg = 1;
+  SlopeOptions slope;
   double smoothing_mm4 = 1e-2;        // lambda of the smoothing term (normal_equations.hpp); mm^6 for order 3
   // m of the smoothing energy E_m (normal_equations.hpp): 2 = thin plate (second derivatives;
   // planes are free), 3 = third derivatives (quadrics are free, so a gap on a curved part is
@@ -90,7 +102,13 @@ struct FitOptions {
   double cg_tolerance = 1e-12;        // CG: relative residual |M x - B| / |B|
   int cg_max_iterations = 20000;
   bool parameter_correction = true;   // project the points onto the surface between rounds
-  int max_rounds = 8;                 // fits at most (the first one included)
+  // Fits at most (the first one included). Parameter correction converges linearly: on a range
+  // scan the RMS still falls by several percent a round after 8 (docs/measurements/fitsurf.md).
+  int max_rounds = 20;
+  // A round whose surface is steeper than the fold check allows (check_no_fold, at the foot points'
+  // cells) is undone and the correction stops there, with a warning: the points slide along a steep
+  // flank round after round until the surface curls over.
+  bool stop_before_fold = true;
   double min_rms_gain = 0.001;        // stop when a round improves the RMS by less than this fraction
   // Without parameter correction: still project every point onto the final surface so residuals
   // are orthogonal distances (false: residuals |Q - S(u,v)| at the plane parameters, faster).
@@ -135,6 +153,11 @@ struct FitResult {
   std::vector<double> residual_mm;    // signed orthogonal distance, positive on the normal's side
   std::vector<double> weight;         // final robust weight (all 1 without reweighting)
   std::vector<double> round_rms_mm;   // weighted RMS distance after each round's fit (the last is returned)
+  DataSlope data_slope;               // the data's own slope over the parameter plane (slope.hpp)
+  double pca_slope_deg = -1;          // with PlaneChoice::Auto: both planes' scores (else -1)
+  double xy_slope_deg = -1;
+  PlaneChoice plane = PlaneChoice::Pca;  // the plane used
+  int stopped_at_round = 0;           // > 0: round stopped_at_round + 1 was steeper than allowed, undone
   double smoothing_mm4 = 0;           // lambda used (options.smoothing_mm4, or chosen for noise_mm)
   bool robust_applied = false;
   double robust_scale_mm = 0;         // global sigma of the last weighting
@@ -145,6 +168,11 @@ struct FitResult {
   int robust_poles_u = 0;             // net the robust weights were judged on (0: none; the fit's own,
   int robust_poles_v = 0;             // or a coarser one: FitOptions::robust_on_coarser_net)
 };
+
+// The options with PlaneChoice::Auto replaced by the plane choose_plane picks for the points
+// (logged when it is xy); pca_deg and xy_deg receive both planes' scores (-1 when not Auto).
+FitOptions with_plane_chosen(const std::vector<Eigen::Vector3d>& points, const FitOptions& options, double& pca_deg,
+                             double& xy_deg);
 
 // Fits the points (world mm). Throws GeometryError for degenerate input: too few points for the
 // degrees, coincident or collinear points, a cloud folding over the parameter plane, a singular

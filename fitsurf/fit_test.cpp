@@ -61,7 +61,7 @@ INSTANTIATE_TEST_SUITE_P(Shapes, DenseAccuracy,
 
 // synth's parts meet the plate through a 20 mm blend (the demo part is synth's bumps; synth_saddle,
 // synth_wave, synth_dome are its other parts, synth::make_shape itself): uniform knots 5.6 mm
-// apart leave 0.012-0.017 mm RMS at 30x30, knots placed by the shape of a first fit
+// apart leave 0.011-0.017 mm RMS at 30x30, knots placed by the shape of a first fit
 // (adaptive_knots) bring them within 0.01 mm (0.004-0.0065), and keep every other shape within it
 // (docs/measurements/fitsurf.md, dense accuracy). Done-when 1 on synth's true surfaces.
 class DenseAdaptive : public FitsurfFit, public ::testing::WithParamInterface<std::string> {};
@@ -78,7 +78,7 @@ TEST_P(DenseAdaptive, HundredThousandNoisyPointsWithin10MicrometresAt30x30) {
   EXPECT_EQ(r.fit.surface.num_poles_u, 30);
   if (GetParam() == "demo") {
     o.fit.knots = KnotPlacement::Uniform;
-    EXPECT_GT(truth(fit_point_cloud(cloud, o).fit.surface, shape).rms_mm, 0.012) << "uniform knots miss the blend";
+    EXPECT_GT(truth(fit_point_cloud(cloud, o).fit.surface, shape).rms_mm, 0.011) << "uniform knots miss the blend";
   }
 }
 
@@ -496,9 +496,12 @@ TEST_F(FitsurfFit, GrossOutliersAreScreenedBeforeTheFirstRound) {
   const auto screened = truth(r.fit.surface, shape);
   const auto clean = truth(fit_point_cloud(cloud_of(clean_pts), o).fit.surface, shape);
   EXPECT_LE(screened.max_mm, 1.1 * clean.max_mm) << "screened " << screened.max_mm << ", clean " << clean.max_mm;
-  o.fit.gross_threshold = 1e9;  // no screening: the spikes fold the surface or stand far off the truth
+  // No screening: the spikes fold the surface (an error naming the fold), or, since parameter
+  // correction stops before a round that curls the surface (stop_before_fold), they are left out
+  // by the reweighting instead and none reaches the surface.
+  o.fit.gross_threshold = 1e9;
   try {
-    EXPECT_GT(truth(fit_point_cloud(cloud_of(pts), o).fit.surface, shape).max_mm, 1.0);
+    EXPECT_LE(truth(fit_point_cloud(cloud_of(pts), o).fit.surface, shape).max_mm, 1.1 * clean.max_mm);
   } catch (const GeometryError& e) {
     EXPECT_NE(std::string(e.what()).find("folds"), std::string::npos) << e.what();
   }

@@ -256,8 +256,9 @@ Result fit_point_cloud(const PointCloud& cloud, const Options& options, const st
 
   std::vector<double> weights;
   if (options.weight_by_sigma) weights = sigma_weights(cloud, r.selection.kept, options.sigma_floor_mm, source);
-  FitOptions fit_options = options.fit;
-  validate(fit_options);
+  validate(options.fit);
+  double pca_slope_deg = -1, xy_slope_deg = -1;
+  FitOptions fit_options = with_plane_chosen(points, options.fit, pca_slope_deg, xy_slope_deg);
   if (!(options.prefit.samples_per_span > 0) || !(options.prefit.outlier_threshold > 0)) {
     throw UsageError("the prefit's samples per span and outlier threshold must be positive");
   }
@@ -266,16 +267,44 @@ Result fit_point_cloud(const PointCloud& cloud, const Options& options, const st
     r.fit = kernel_prefit_fit(points, fit_options, options.prefit, *r.prefit);
   } else {
     if (options.tolerance) {
-      r.tolerance = choose_net(points, options.fit, *options.tolerance);
+      r.tolerance = choose_net(points, fit_options, *options.tolerance);
       fit_options.poles_u = r.tolerance->poles_u;
       fit_options.poles_v = r.tolerance->poles_v;
     }
     r.fit = fit_surface(points, fit_options, weights);
   }
-  r.fit.surface.boundary_uv = data_outline(r.fit.uv, r.fit.weight, r.fit.box.length_u_mm(),
-                                           r.fit.box.length_v_mm(), options.outline);
-  r.fit.local_surface.boundary_uv = r.fit.surface.boundary_uv;
-  check_no_fold(r.fit, r.fit.surface.boundary_uv, fit_options.fold);
+  r.fit.pca_slope_deg = pca_slope_deg;
+  r.fit.xy_slope_deg = xy_slope_deg;
+  auto outline_and_check = [&] {
+    r.fit.surface.boundary_uv = data_outline(r.fit.uv, r.fit.weight, r.fit.box.length_u_mm(),
+                                             r.fit.box.length_v_mm(), options.outline);
+    r.fit.local_surface.boundary_uv = r.fit.surface.boundary_uv;
+    check_no_fold(r.fit, r.fit.surface.boundary_uv, fit_options.fold);
+  };
+  // fit_surface stops the parameter correction before a round too steep at the foot points'
+  // cells (FitOptions::stop_before_fold); the outline can hold places between them that were
+  // not looked at. Then the fit is repeated with one round fewer, down to the first.
+  for (;;) {
+    try {
+      outline_and_check();
+      break;
+    } catch (const GeometryError& e) {
+      const int rounds = static_cast<int>(r.fit.round_rms_mm.size());
+      if (r.prefit || !fit_options.stop_before_fold || !fit_options.parameter_correction || rounds <= 1) throw;
+      log::debug(std::string("fitted again with ") + std::to_string(rounds - 1) + " rounds: " + e.what());
+      fit_options.max_rounds = rounds - 1;
+      r.fit = fit_surface(points, fit_options, weights);
+      r.fit.stopped_at_round = rounds - 1;
+      r.fit.pca_slope_deg = pca_slope_deg;
+      r.fit.xy_slope_deg = xy_slope_deg;
+    }
+  }
+  if (r.fit.stopped_at_round > 0) {
+    log::warn("parameter correction stopped after round " + std::to_string(r.fit.stopped_at_round) +
+              ": the next round's surface was steeper than the data allow (it curls over the plane where the points "
+              "slide along a steep flank); fitted RMS " + sig(r.fit.round_rms_mm.back(), 4) +
+              " mm. A larger --smoothing lets the correction go further");
+  }
   r.stats = residual_stats(r.fit.residual_mm, r.fit);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;

@@ -28,6 +28,7 @@ Eigen::Vector3d oriented_normal(Eigen::Vector3d n) {
 PlaneFrame parameter_frame(const std::vector<Eigen::Vector3d>& points, PlaneChoice choice,
                            const FrameOptions& options) {
   if (points.empty()) throw GeometryError("no points to fit");
+  if (choice == PlaneChoice::Auto) throw UsageError("parameter_frame: choose the plane first (choose_plane)");
   // Two passes (centroid, then the covariance about it) keep the covariance accurate for clouds
   // far from the origin.
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();

@@ -13,6 +13,7 @@ namespace photomill::fitsurf {
 enum class PlaneChoice {
   Pca,  // best-fit plane of the points (principal component analysis)
   Xy,   // the world xy plane (parts measured standing on a horizontal plate)
+  Auto, // whichever of the two holds the data better as a height field (choose_plane, slope.hpp)
 };
 
 struct PlaneFrame {

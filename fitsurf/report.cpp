@@ -14,7 +14,14 @@ std::string num(double v) { return sig(v, 4); }
 std::string to_string(KnotPlacement k) {
   return k == KnotPlacement::Uniform ? "uniform" : k == KnotPlacement::Averaged ? "averaged" : "adaptive";
 }
-std::string to_string(PlaneChoice p) { return p == PlaneChoice::Pca ? "pca" : "xy"; }
+std::string to_string(PlaneChoice p) {
+  switch (p) {
+    case PlaneChoice::Pca: return "pca";
+    case PlaneChoice::Xy: return "xy";
+    case PlaneChoice::Auto: return "auto";
+  }
+  return "pca";
+}
 std::string to_string(LinearSolver s) { return s == LinearSolver::Ldlt ? "ldlt" : "cg"; }
 std::string to_string(RobustLoss r) {
   switch (r) {
@@ -63,7 +70,16 @@ void write_report(std::ostream& out, const Result& r, const Options& o, const st
   j.field("poles_u", s.num_poles_u);
   j.field("poles_v", s.num_poles_v);
   j.field("knots", to_string(o.fit.knots));
-  j.field("parameter_plane", to_string(o.fit.plane));
+  j.field("parameter_plane", to_string(f.plane));
+  j.field("parameter_plane_option", to_string(o.fit.plane));
+  // The data's steepest slopes (99th percentile of the cells, slope.hpp) over both candidate
+  // planes when --plane auto chose between them, and over the plane used.
+  if (f.pca_slope_deg >= 0) {
+    j.field("data_slope_pca_deg", f.pca_slope_deg);
+    j.field("data_slope_xy_deg", f.xy_slope_deg);
+  }
+  j.field("data_slope_max_deg", f.data_slope.max_deg);
+  j.field("stopped_before_fold", f.stopped_at_round > 0);
   j.key("plane_origin_mm").begin_array();
   for (int k = 0; k < 3; ++k) j.value(f.frame.origin_mm[k]);
   j.end_array();

@@ -1,0 +1,63 @@
+// fitsurf on a real range scan nobody on the project made: the Stanford bunny's bun000 (Cyberware
+// 3030MS), the body patch of ../shared/data/README.md (x in [-0.07, 0.03], y in [0.06, 0.13] m,
+// 19 661 points, scaled to mm). Issue #24: with default options fitsurf refused it at every net
+// ("folds ... or is steeper than 84 degrees"). References in the README: FreeCAD 0.20's
+// approxSurface (orthogonal RMS 0.731 / 0.450 / 0.202 mm at 8 / 12 / 20 poles per axis) and a
+// least-squares height field (0.931 / 0.622 / 0.237 / 0.098 mm at 8 / 12 / 20 / 36, measured as
+// orthogonal distance).
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "fitsurf/fitsurf.hpp"
+#include "formats/log.hpp"
+#include "formats/point_cloud.hpp"
+
+namespace photomill::fitsurf {
+namespace {
+
+class RealScan : public ::testing::TestWithParam<std::tuple<int, double>> {
+protected:
+  void SetUp() override { log::set_level(log::Level::Quiet); }
+};
+
+PointCloud body_patch(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  const PointCloud scan = read_point_cloud(f, path);
+  PointCloud patch;
+  // The file's unit is the metre and its coordinates are floats: compared as floats, the bounds
+  // keep the points that lie on them.
+  for (const Eigen::Vector3d& p : scan.points_mm) {
+    const float x = static_cast<float>(p.x()), y = static_cast<float>(p.y());
+    if (x >= -0.07f && x <= 0.03f && y >= 0.06f && y <= 0.13f) patch.points_mm.push_back(1000 * p);
+  }
+  return patch;
+}
+
+// Default options at every net: a surface, no refusal, its RMS orthogonal distance over all the
+// points (outliers included) at or below the bound: FreeCAD's + 2 % where photomill meets it
+// (8 poles), else the least-squares height field's (12, 20: photomill's 0.493 and 0.225 mm are
+// still above FreeCAD's 0.450 and 0.202; issue #24 stays open on them), and at 36 the reference
+// + 2 %.
+TEST_P(RealScan, BunnyBodyPatchFitsAtEveryNetWithDefaultOptions) {
+  const auto [poles, bound_mm] = GetParam();
+  const std::string path = std::string(PHOTOMILL_SHARED_DIR) + "/data/stanford-bunny/bun000.ply";
+  if (!std::ifstream(path)) GTEST_SKIP() << "shared data not found: " << path;
+  const PointCloud patch = body_patch(path);
+  ASSERT_EQ(patch.points_mm.size(), 19661u) << "the README's body patch";
+  Options o;
+  o.fit.poles_u = o.fit.poles_v = poles;
+  const Result r = fit_point_cloud(patch, o);
+  EXPECT_EQ(r.stats.count, 19661u);
+  EXPECT_LE(r.stats.rms_mm, bound_mm) << poles << " poles";
+  EXPECT_EQ(r.fit.plane, PlaneChoice::Xy) << "the scan's flank is steeper over its best-fit plane than over xy";
+}
+
+INSTANTIATE_TEST_SUITE_P(Nets, RealScan,
+                         ::testing::Values(std::tuple{8, 1.02 * 0.731}, std::tuple{12, 0.622}, std::tuple{20, 0.237},
+                                           std::tuple{36, 1.02 * 0.098}));
+
+}  // namespace
+}  // namespace photomill::fitsurf
