@@ -37,7 +37,7 @@ for net in $nets; do
   read -r fs_wall fs_user fs_sys <<<"$t"
   fs_cpu=$(echo "$fs_user + $fs_sys" | bc)
   read -r plane rounds own_rms <<<"$(python3 -c "import json,sys; d=json.load(open(sys.argv[1]))
-print(d['surface']['parameter_plane'], len(d['round_rms_mm']), '%.5f' % d['residuals']['rms_mm'])" "$work/s.json")"
+print(d['surface']['parameter_plane'], len(d['fit']['round_rms_mm']), '%.5f' % d['residuals']['rms_mm'])" "$work/s.json")"
   fc_wall=- fc_cpu=- fc_rms=- ratio=- fs_rms=$own_rms
   if [ "$have_fc" = 1 ]; then
     net_fc=$net
