@@ -155,6 +155,15 @@ INSTANTIATE_TEST_SUITE_P(
                      EXPECT_EQ(json_raw(r.report, "parameter_plane", "surface"), "\"xy\"");
                      EXPECT_EQ(json_raw(r.report, "plane_normal", "surface"), "[0");
                    }},
+        OptionCase{"plane_auto", on({"--plane", "auto"}), 0, "",
+                   [](const Outcome& r) {
+                     // The dome's slopes are the same over both planes: the best-fit plane is kept.
+                     EXPECT_EQ(json_raw(r.report, "parameter_plane_option", "surface"), "\"auto\"");
+                     EXPECT_EQ(json_raw(r.report, "parameter_plane", "surface"), "\"pca\"");
+                     EXPECT_GT(json_number(r.report, "data_slope_xy_deg", "surface"), 10);
+                     EXPECT_NEAR(json_number(r.report, "data_slope_xy_deg", "surface"),
+                                 json_number(r.report, "data_slope_pca_deg", "surface"), 1.0);
+                   }},
         bad("plane_bad", {"--plane", "yz"}, "--plane"),
         OptionCase{"outline_convex", on({"--outline", "convex"}), 0, "",
                    [](const Outcome& r) {
