@@ -294,7 +294,8 @@ Result fit_point_cloud(const PointCloud& cloud, const Options& options, const st
       log::debug(std::string("fitted again with ") + std::to_string(rounds - 1) + " rounds: " + e.what());
       fit_options.max_rounds = rounds - 1;
       r.fit = fit_surface(points, fit_options, weights);
-      r.fit.stopped_at_round = rounds - 1;
+      // Stopped: by this fit's own check, or by the outline's check of the longer one.
+      if (r.fit.stopped_at_round == 0) r.fit.stopped_at_round = static_cast<int>(r.fit.round_rms_mm.size());
       r.fit.pca_slope_deg = pca_slope_deg;
       r.fit.xy_slope_deg = xy_slope_deg;
     }
