@@ -280,17 +280,11 @@ double smoothing_for_noise(NetSolver& solver, const SplineSpace& space, const st
 void check_height_field(const std::vector<Eigen::Vector3d>& local, const ParameterBox& box,
                         const PlaneFrame& frame, const FoldOptions& o) {
   if (local.size() < o.min_points) return;
-  const double lu = box.length_u_mm(), lv = box.length_v_mm();
-  const double cell = o.cell_spacings * std::sqrt(lu * lv / static_cast<double>(local.size()));
-  const int nx = std::max(1, static_cast<int>(std::ceil(lu / cell)));
-  const int ny = std::max(1, static_cast<int>(std::ceil(lv / cell)));
-  const std::size_t ncell = static_cast<std::size_t>(nx) * ny;
+  const CellGrid grid(box, local.size(), o.cell_spacings);
+  const double cell = grid.cell_mm;
+  const std::size_t ncell = grid.size();
   // Counting sort of the points by cell.
-  auto cell_of = [&](const Eigen::Vector3d& x) {
-    const int ix = std::clamp(static_cast<int>((x.x() - box.t1_min) / cell), 0, nx - 1);
-    const int iy = std::clamp(static_cast<int>((x.y() - box.t2_min) / cell), 0, ny - 1);
-    return static_cast<std::size_t>(iy) * nx + ix;
-  };
+  auto cell_of = [&](const Eigen::Vector3d& x) { return grid.cell_of(x); };
   std::vector<std::size_t> start(ncell + 1, 0);
   for (const auto& x : local) ++start[cell_of(x) + 1];
   for (std::size_t c = 0; c < ncell; ++c) start[c + 1] += start[c];

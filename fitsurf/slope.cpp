@@ -11,11 +11,26 @@
 
 namespace photomill::fitsurf {
 
+CellGrid::CellGrid(const ParameterBox& box, std::size_t n, double spacings)
+    : t1_min(box.t1_min), t2_min(box.t2_min) {
+  const double lu = box.length_u_mm(), lv = box.length_v_mm();
+  cell_mm = spacings * std::sqrt(lu * lv / static_cast<double>(std::max<std::size_t>(n, 1)));
+  nx = std::max(1, static_cast<int>(std::ceil(lu / cell_mm)));
+  ny = std::max(1, static_cast<int>(std::ceil(lv / cell_mm)));
+}
+
+std::size_t CellGrid::cell_of(const Eigen::Vector3d& x) const {
+  const int ix = std::clamp(static_cast<int>((x.x() - t1_min) / cell_mm), 0, nx - 1);
+  const int iy = std::clamp(static_cast<int>((x.y() - t2_min) / cell_mm), 0, ny - 1);
+  return static_cast<std::size_t>(iy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(ix);
+}
+
 double DataSlope::near(double t1, double t2, double radius_mm) const {
+  const int nx = grid.nx, ny = grid.ny;
   if (nx <= 0 || ny <= 0) return -1;
-  const int ix = static_cast<int>(std::floor((t1 - t1_min) / cell_mm));
-  const int iy = static_cast<int>(std::floor((t2 - t2_min) / cell_mm));
-  const int k = std::clamp(static_cast<int>(std::ceil(radius_mm / cell_mm)), 1, std::max(nx, ny));
+  const int ix = static_cast<int>(std::floor((t1 - grid.t1_min) / grid.cell_mm));
+  const int iy = static_cast<int>(std::floor((t2 - grid.t2_min) / grid.cell_mm));
+  const int k = std::clamp(static_cast<int>(std::ceil(radius_mm / grid.cell_mm)), 1, std::max(nx, ny));
   double s = -1;
   for (int y = std::max(0, iy - k); y <= std::min(ny - 1, iy + k); ++y) {
     for (int x = std::max(0, ix - k); x <= std::min(nx - 1, ix + k); ++x) {
@@ -28,18 +43,9 @@ double DataSlope::near(double t1, double t2, double radius_mm) const {
 DataSlope data_slope(const std::vector<Eigen::Vector3d>& local, const ParameterBox& box, const SlopeOptions& o) {
   DataSlope r;
   if (local.empty()) return r;
-  const double lu = box.length_u_mm(), lv = box.length_v_mm();
-  r.t1_min = box.t1_min;
-  r.t2_min = box.t2_min;
-  r.cell_mm = o.cell_spacings * std::sqrt(lu * lv / static_cast<double>(local.size()));
-  r.nx = std::max(1, static_cast<int>(std::ceil(lu / r.cell_mm)));
-  r.ny = std::max(1, static_cast<int>(std::ceil(lv / r.cell_mm)));
-  const std::size_t ncell = static_cast<std::size_t>(r.nx) * static_cast<std::size_t>(r.ny);
-  auto cell_of = [&](const Eigen::Vector3d& x) {
-    const int ix = std::clamp(static_cast<int>((x.x() - r.t1_min) / r.cell_mm), 0, r.nx - 1);
-    const int iy = std::clamp(static_cast<int>((x.y() - r.t2_min) / r.cell_mm), 0, r.ny - 1);
-    return static_cast<std::size_t>(iy) * static_cast<std::size_t>(r.nx) + static_cast<std::size_t>(ix);
-  };
+  r.grid = CellGrid(box, local.size(), o.cell_spacings);
+  const std::size_t ncell = r.grid.size();
+  auto cell_of = [&](const Eigen::Vector3d& x) { return r.grid.cell_of(x); };
   // Per cell: count, sum and sum of outer products (about the first point of the cell, so the
   // covariance keeps its precision far from the origin).
   std::vector<std::size_t> count(ncell, 0);

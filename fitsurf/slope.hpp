@@ -18,6 +18,18 @@
 
 namespace photomill::fitsurf {
 
+// Square cells over a parameter box, `spacings` mean point spacings wide (the mean spacing of n
+// points over the box: sqrt(area / n)); points outside the box go to the nearest edge cell.
+// The two-layer test (fit.cpp) and the slopes below cut the plane the same way.
+struct CellGrid {
+  double t1_min = 0, t2_min = 0, cell_mm = 1;
+  int nx = 0, ny = 0;
+  CellGrid() = default;
+  CellGrid(const ParameterBox& box, std::size_t n, double spacings);
+  std::size_t size() const { return static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny); }
+  std::size_t cell_of(const Eigen::Vector3d& local) const;
+};
+
 struct SlopeOptions {
   double cell_spacings = 4;
   std::size_t min_points = 6;
@@ -27,9 +39,8 @@ struct SlopeOptions {
 };
 
 struct DataSlope {
-  double t1_min = 0, t2_min = 0, cell_mm = 1;
-  int nx = 0, ny = 0;
-  std::vector<float> slope_deg;  // per cell (iy * nx + ix); negative: no slope there
+  CellGrid grid;
+  std::vector<float> slope_deg;  // per cell (CellGrid::cell_of); negative: no slope there
   double max_deg = 0;            // steepest cell (0 without any)
   Eigen::Vector3d max_at = Eigen::Vector3d::Zero();  // its points' centroid, local mm
   double score_deg = 0;          // SlopeOptions::score_quantile of the cells' slopes
