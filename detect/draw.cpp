@@ -232,32 +232,12 @@ DrawingFiles::DrawingFiles(const DrawOptions& options, const std::vector<std::st
   if (!fs::is_directory(options_.dir)) throw InputError(options_.dir, 0, "cannot create the drawings folder");
 }
 
-DrawingFiles::~DrawingFiles() {
-  if (keep_) return;
-  for (const auto& p : written_) {
-    std::error_code ec;
-    fs::remove(p, ec);
-  }
-}
-
 void DrawingFiles::write(const std::string& image, const cv::Mat& bgr) {
   const auto bytes = encode_drawing(bgr, options_);
   const fs::path& path = paths_.at(image);
   tool::OutputFile out(path.string());
   out.stream().write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
-  const std::lock_guard<std::mutex> lock(mutex_);
   out.commit();
-  written_.push_back(path);
-}
-
-std::size_t DrawingFiles::written() const {
-  const std::lock_guard<std::mutex> lock(mutex_);
-  return written_.size();
-}
-
-void DrawingFiles::keep() {
-  const std::lock_guard<std::mutex> lock(mutex_);
-  keep_ = true;
 }
 
 }  // namespace photomill::detect

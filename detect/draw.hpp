@@ -9,7 +9,6 @@
 #include <cstdint>
 #include <filesystem>
 #include <map>
-#include <mutex>
 #include <string>
 #include <vector>
 
@@ -44,13 +43,12 @@ cv::Mat draw_board(const cv::Mat& grey, const ImageDetection& detection, const B
 std::vector<std::uint8_t> encode_drawing(const cv::Mat& bgr, const DrawOptions& options);
 
 // The drawing files of one run: DIR/<image file name>.<format> per image (the folder is created).
-// write() may be called from several threads at once. Files already written are removed again
-// when the object is destroyed without keep(): a failed run leaves no drawings behind.
+// write() may be called from several threads at once. Inside tool::run the files are renamed
+// into place only when the whole run succeeded: a failed run leaves the previous drawings.
 class DrawingFiles {
 public:
   // Throws UsageError if two images share a file name, InputError if the folder cannot be made.
   DrawingFiles(const DrawOptions& options, const std::vector<std::string>& images);
-  ~DrawingFiles();
   DrawingFiles(const DrawingFiles&) = delete;
   DrawingFiles& operator=(const DrawingFiles&) = delete;
 
@@ -58,15 +56,10 @@ public:
   // temporary name renamed on success.
   void write(const std::string& image, const cv::Mat& bgr);
   const std::filesystem::path& path_of(const std::string& image) const { return paths_.at(image); }
-  std::size_t written() const;
-  void keep();
 
 private:
   DrawOptions options_;
   std::map<std::string, std::filesystem::path> paths_;
-  mutable std::mutex mutex_;
-  std::vector<std::filesystem::path> written_;
-  bool keep_ = false;
 };
 
 }  // namespace photomill::detect

@@ -29,7 +29,7 @@ void run_boards(detect::BoardSpec spec, const detect::BoardDetectOptions& option
   }
   const auto images = detect::expand_image_arguments(image_args, *tool::open_input("-"));
   if (images.empty()) throw UsageError("no images given");
-  std::optional<detect::DrawingFiles> drawings;  // removes its pictures again unless the run succeeds
+  std::optional<detect::DrawingFiles> drawings;
   detect::BoardImageHook draw_board;
   if (!draw.dir.empty()) {
     drawings.emplace(draw, images);
@@ -48,7 +48,6 @@ void run_boards(detect::BoardSpec spec, const detect::BoardDetectOptions& option
   if (found == 0) throw GeometryError("no board found in any of the " + std::to_string(images.size()) + " images");
   write_observations(out.stream(), observations);
   out.commit();
-  if (drawings) drawings->keep();
   log::info("board found in " + std::to_string(found) + " of " + std::to_string(images.size()) + " images, " +
             std::to_string(observations.size()) + " corners");
 }

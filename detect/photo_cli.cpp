@@ -149,7 +149,7 @@ void run_photos(PhotoCli c, const std::vector<std::string>& images, const std::s
     fs::create_directories(c.features_dir, ec);
     if (!fs::is_directory(c.features_dir)) throw InputError(c.features_dir, 0, "cannot create the features folder");
   }
-  std::optional<DrawingFiles> drawings;  // removes its pictures again unless the run succeeds
+  std::optional<DrawingFiles> drawings;
   PhotoImageHook draw;
   if (!c.draw.dir.empty()) {
     drawings.emplace(c.draw, images);
@@ -163,9 +163,10 @@ void run_photos(PhotoCli c, const std::vector<std::string>& images, const std::s
   if (!c.scale_bars.empty()) bars = std::make_unique<tool::OutputFile>(c.scale_bars);
 
   std::vector<std::optional<MarkerDetection>> found(images.size());
-  std::vector<fs::path> written;  // feature files, removed again if the run fails
   std::size_t done = 0, features = 0, markers = 0, rejected = 0;
-  try {
+  // The feature files, drawings and observations are renamed into place together when the run
+  // succeeded (tool::run): a failed run leaves the previous run's files as they were.
+  {
     detect_photos(images, o, [&](PhotoResult&& r) {
       const std::string& image = images[r.index];
       std::string line = image + ":";
@@ -178,7 +179,6 @@ void run_photos(PhotoCli c, const std::vector<std::string>& images, const std::s
         tool::OutputFile feat(feat_paths.at(image).string());
         write_features(feat.stream(), *r.features);
         feat.commit();
-        written.push_back(feat_paths.at(image));
         features += r.features->keypoints.size();
         line += std::string(r.markers ? "," : "") + " " + std::to_string(r.features->keypoints.size()) + " features";
       }
@@ -205,18 +205,11 @@ void run_photos(PhotoCli c, const std::vector<std::string>& images, const std::s
       if (bars) bars->commit();
       out->commit();
     }
-    if (drawings) drawings->keep();
-  } catch (...) {
-    for (const auto& p : written) {
-      std::error_code ec;
-      fs::remove(p, ec);
-    }
-    throw;
   }
   std::string summary = std::to_string(images.size()) + " images";
   if (o.dictionary) summary += ", " + std::to_string(markers) + " markers, " + std::to_string(rejected) + " rejected";
   if (o.sift) summary += ", " + std::to_string(features) + " features in " + c.features_dir;
-  if (drawings) summary += ", " + std::to_string(drawings->written()) + " drawings in " + c.draw.dir;
+  if (drawings) summary += ", " + std::to_string(images.size()) + " drawings in " + c.draw.dir;
   log::info(summary);
 }
 

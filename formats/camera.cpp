@@ -296,6 +296,28 @@ void validate_camera(const Camera& c, const std::string& source) {
   }
   if (!c.camera_matrix.allFinite()) throw InputError(source, 0, "camera_matrix has a non-finite value");
   if (!(c.fx() > 0) || !(c.fy() > 0)) throw InputError(source, 0, "focal lengths fx, fy must be positive");
+  // A pinhole's field of view across a side of n px is 2 atan(n / (2 f)): between
+  // kMinFieldOfViewDeg and kMaxFieldOfViewDeg the focal length lies in [n / (2 tan(max / 2)),
+  // n / (2 tan(min / 2))] (issue #25: fx = 1e308 was accepted and triangulate blamed the tracks).
+  const auto plausible_focal = [&](double f, int side_px, const char* name) {
+    const double deg = std::acos(-1.0) / 180;
+    const double most = side_px / (2 * std::tan(kMinFieldOfViewDeg / 2 * deg));
+    const double least = side_px / (2 * std::tan(kMaxFieldOfViewDeg / 2 * deg));
+    if (f < least || f > most) {
+      throw InputError(source, 0, std::string(name) + " = " + format_double(f) + " px is not plausible for a side of " +
+                                      std::to_string(side_px) + " px (a field of view outside " +
+                                      format_double(kMinFieldOfViewDeg) + "-" + format_double(kMaxFieldOfViewDeg) +
+                                      " degrees)");
+    }
+  };
+  plausible_focal(c.fx(), c.image_width_px, "fx");
+  plausible_focal(c.fy(), c.image_height_px, "fy");
+  const double cx = c.camera_matrix(0, 2), cy = c.camera_matrix(1, 2);
+  if (cx < -c.image_width_px || cx > 2.0 * c.image_width_px || cy < -c.image_height_px || cy > 2.0 * c.image_height_px) {
+    throw InputError(source, 0, "principal point (" + format_double(cx) + ", " + format_double(cy) +
+                                    ") px lies more than an image size outside the " + std::to_string(c.image_width_px) +
+                                    "x" + std::to_string(c.image_height_px) + " image");
+  }
   if (c.camera_matrix(1, 0) != 0 || c.camera_matrix(2, 0) != 0 || c.camera_matrix(2, 1) != 0 ||
       c.camera_matrix(2, 2) != 1) {
     throw InputError(source, 0, "camera_matrix must be [fx s cx; 0 fy cy; 0 0 1]");

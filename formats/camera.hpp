@@ -43,8 +43,14 @@ struct CameraYamlLimits {
 Camera read_camera_yaml(std::istream& in, const std::string& source, CameraYamlLimits limits = {});
 void write_camera_yaml(std::ostream& out, const Camera& camera);
 
-// Checks the camera for sanity (positive focal lengths and image size, finite values, a
-// supported number of distortion coefficients). Throws InputError(source, 0, ...).
+// The fields of view a camera file may give (across the image's width for fx, its height for
+// fy): a focal length outside is a typo or junk, not a lens.
+inline constexpr double kMinFieldOfViewDeg = 0.1;
+inline constexpr double kMaxFieldOfViewDeg = 179;
+
+// Checks the camera for sanity (positive focal lengths within the fields of view above, a
+// principal point at most an image size outside the image, a plausible image size, finite
+// values, a supported number of distortion coefficients). Throws InputError(source, 0, ...).
 void validate_camera(const Camera& camera, const std::string& source);
 
 }  // namespace photomill

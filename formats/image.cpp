@@ -81,6 +81,14 @@ void check_image_file(const std::string& path) {
   const auto status = fs::status(path, ec);
   if (!fs::exists(status)) throw InputError(path, 0, "cannot open: No such file or directory");
   if (fs::is_directory(status)) throw InputError(path, 0, "is a directory");
+  // The decoder opens the file again after this check: a FIFO would be empty by then, a device
+  // endless (issue #25: detect hung on a FIFO and read /dev/zero until the memory ran out).
+  if (!fs::is_regular_file(status)) {
+    throw InputError(path, 0, "not a regular file: a photo is read twice (checked, then decoded), which a pipe or device cannot be");
+  }
+  if (fs::file_size(path, ec) > kMaxImageBytes) {
+    throw InputError(path, 0, "larger than " + std::to_string(kMaxImageBytes) + " bytes, more than a photo may have");
+  }
   std::ifstream f(path, std::ios::binary);
   if (!f) throw InputError(path, 0, std::string("cannot open: ") + std::strerror(errno));
   const std::string d((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());

@@ -12,9 +12,11 @@ namespace photomill {
 // The most pixels an image may claim: 2^28 (268 Mpixel; the largest phone sensors have 200).
 // A header claiming more is junk or hostile, and decoding it would allocate that much first.
 inline constexpr std::uint64_t kMaxImagePixels = std::uint64_t{1} << 28;
+// The largest image file: 2^31 bytes (8 bytes a pixel at kMaxImagePixels, uncompressed).
+inline constexpr std::uint64_t kMaxImageBytes = std::uint64_t{1} << 31;
 
-// Throws InputError(path, 0, reason) unless `path` names a regular, non-empty file whose content
-// is complete for its format and within kMaxImagePixels: a PNG needs its IDAT data and IEND
+// Throws InputError(path, 0, reason) unless `path` names a regular, non-empty file of at most
+// kMaxImageBytes whose content is complete for its format and within kMaxImagePixels: a PNG needs its IDAT data and IEND
 // chunk, a JPEG its end-of-image marker (data appended after it are allowed). Other formats
 // (TIFF, BMP, ...) are left to the decoder.
 void check_image_file(const std::string& path);

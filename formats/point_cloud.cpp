@@ -473,7 +473,13 @@ void write_xyz(std::ostream& out, const PointCloud& cloud) {
 PointCloud read_point_cloud(std::istream& in, const std::string& source, PointCloudLimits limits) {
   // Peek at the first bytes without consuming them.
   std::streambuf* sb = in.rdbuf();
-  const int c0 = sb->sgetc();
+  int c0 = sb->sgetc();
+  if (c0 == 0xEF) {
+    // A UTF-8 byte order mark (some Windows editors write one): skipped, as the CSV readers do.
+    sb->sbumpc();
+    if (sb->sbumpc() != 0xBB || sb->sbumpc() != 0xBF) throw InputError(source, 1, "not a point cloud (neither PLY nor x y z text)");
+    c0 = sb->sgetc();
+  }
   if (c0 == 'p') {
     // "ply" must be the whole first line; read_ply checks that.
     return read_ply(in, source, limits);

@@ -18,7 +18,13 @@ bool LineReader::read_raw_line() {
   if (sb == nullptr) return false;
   bool any = false;
   for (;;) {
-    const int c = sb->sbumpc();
+    int c = 0;
+    try {
+      c = sb->sbumpc();
+    } catch (const InputError& e) {  // a read error (tool::open_input): name the line it hit
+      if (e.line() != 0) throw;
+      throw InputError(e.source(), line_number_ + 1, e.message());
+    }
     if (c == std::char_traits<char>::eof()) {
       if (!any) return false;
       break;

@@ -1,5 +1,6 @@
 #include "formats/tool.hpp"
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cerrno>
@@ -11,8 +12,12 @@
 #include <fstream>
 #include <iostream>
 #include <locale>
+#include <mutex>
+#include <vector>
 #include <sstream>
 
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "formats/error.hpp"
@@ -21,48 +26,136 @@
 namespace photomill::tool {
 namespace {
 
-// Temporary files of unfinished outputs, removed by the signal handler. A fixed table of plain
-// char buffers because a signal handler may only call async-signal-safe functions (unlink).
-constexpr std::size_t kMaxPending = 16;
-constexpr std::size_t kMaxPath = 4096;
-std::array<std::array<char, kMaxPath>, kMaxPending> g_pending_paths{};
-std::array<std::atomic<bool>, kMaxPending> g_pending_used{};
+// Temporary files of unfinished or staged outputs, removed by the signal handler. A signal
+// handler may only call async-signal-safe functions (unlink) and must not walk a container that
+// another thread is changing, so the table is a list of nodes that are never freed: a node is
+// claimed (0 -> 1), filled, then armed (2); the handler unlinks armed nodes only. It grows
+// without bound (detect stages one features file per photo) and reuses released nodes.
+struct PendingNode {
+  std::atomic<int> state{0};  // 0 free, 1 being filled, 2 armed
+  std::size_t capacity = 0;
+  char* path = nullptr;
+  PendingNode* next = nullptr;
+};
+std::atomic<PendingNode*> g_pending_head{nullptr};
 
-int register_pending(const std::string& path) {
-  if (path.size() + 1 > kMaxPath) return -1;
-  for (std::size_t i = 0; i < kMaxPending; ++i) {
-    bool expected = false;
-    if (g_pending_used[i].compare_exchange_strong(expected, true)) {
-      std::memcpy(g_pending_paths[i].data(), path.c_str(), path.size() + 1);
-      return static_cast<int>(i);
+void register_pending(const std::string& path) {
+  for (PendingNode* n = g_pending_head.load(); n != nullptr; n = n->next) {
+    int expected = 0;
+    if (n->capacity > path.size() && n->state.compare_exchange_strong(expected, 1)) {
+      std::memcpy(n->path, path.c_str(), path.size() + 1);
+      n->state = 2;
+      return;
     }
   }
-  return -1;
+  auto* n = new PendingNode;  // lives as long as the process (see above)
+  n->capacity = std::max<std::size_t>(path.size() + 1, 256);
+  n->path = new char[n->capacity];
+  std::memcpy(n->path, path.c_str(), path.size() + 1);
+  n->state = 2;
+  n->next = g_pending_head.load();
+  while (!g_pending_head.compare_exchange_weak(n->next, n)) {
+  }
 }
 
 void unregister_pending(const std::string& path) {
-  for (std::size_t i = 0; i < kMaxPending; ++i) {
-    if (g_pending_used[i] && path == g_pending_paths[i].data()) g_pending_used[i] = false;
+  for (PendingNode* n = g_pending_head.load(); n != nullptr; n = n->next) {
+    int armed = 2;
+    if (n->state.load() == 2 && path == n->path) {
+      n->state.compare_exchange_strong(armed, 0);
+      return;
+    }
   }
 }
 
 extern "C" void remove_pending_and_reraise(int sig) {
-  for (std::size_t i = 0; i < kMaxPending; ++i) {
-    if (g_pending_used[i]) ::unlink(g_pending_paths[i].data());
+  for (PendingNode* n = g_pending_head.load(); n != nullptr; n = n->next) {
+    if (n->state.load() == 2) ::unlink(n->path);
   }
   std::signal(sig, SIG_DFL);
   std::raise(sig);
 }
 
+// The signals whose default action ends the process: each would leave temporary files behind.
+constexpr std::array<int, 10> kFatalSignals = {SIGHUP, SIGINT, SIGQUIT, SIGTERM, SIGPIPE,
+                                               SIGALRM, SIGUSR1, SIGUSR2, SIGXCPU, SIGXFSZ};
+
+// Outputs committed inside run(): complete temporaries waiting for their rename, which run() does
+// for all of them only after the body returned (an output is renamed only when every output of
+// the run is complete). Outside run() (tests, library users) commit() renames at once.
+struct Staged {
+  std::string temp;
+  std::string target;
+  std::string name;  // as the user gave it, for messages
+};
+std::mutex g_staged_mutex;
+bool g_staging = false;
+std::vector<Staged> g_staged;
+
+void discard_staged() {
+  const std::lock_guard<std::mutex> lock(g_staged_mutex);
+  for (const auto& s : g_staged) {
+    std::remove(s.temp.c_str());
+    unregister_pending(s.temp);
+  }
+  g_staged.clear();
+}
+
+// Renames every staged output onto its target, in the order committed. A rename that fails stops
+// the run: the outputs not yet renamed keep their previous content.
+void rename_staged() {
+  const std::lock_guard<std::mutex> lock(g_staged_mutex);
+  for (std::size_t i = 0; i < g_staged.size(); ++i) {
+    const Staged& s = g_staged[i];
+    if (std::rename(s.temp.c_str(), s.target.c_str()) != 0) {
+      const std::string reason = std::strerror(errno);
+      for (std::size_t j = i; j < g_staged.size(); ++j) {
+        std::remove(g_staged[j].temp.c_str());
+        unregister_pending(g_staged[j].temp);
+      }
+      g_staged.clear();
+      throw InputError(s.name, 0, "cannot rename temporary file: " + reason);
+    }
+    unregister_pending(s.temp);
+  }
+  g_staged.clear();
+}
+
 std::atomic<unsigned> g_temp_counter{0};
 
+// The most bytes of one name in `dir` (NAME_MAX, 255 on Linux's file systems).
+std::size_t name_max(const std::filesystem::path& dir) {
+  const long n = ::pathconf(dir.c_str(), _PC_NAME_MAX);
+  return n > 16 ? static_cast<std::size_t>(n) : 255;
+}
+
+// ".NAME.tmp.PID.N" beside the target; NAME is shortened so that the whole stays within the
+// folder's name limit (a target name of 250 bytes is legal, its temporary name must be too).
 std::string make_temp_name(const std::string& path) {
   namespace fs = std::filesystem;
   const fs::path p(path);
   const fs::path dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
-  const std::string name = "." + p.filename().string() + ".tmp." + std::to_string(::getpid()) +
-                           "." + std::to_string(g_temp_counter++);
-  return (dir / name).string();
+  const std::string suffix = ".tmp." + std::to_string(::getpid()) + "." + std::to_string(g_temp_counter++);
+  std::string stem = p.filename().string();
+  const std::size_t room = name_max(dir) - 1 - suffix.size();
+  if (stem.size() > room) stem.resize(room);
+  return (dir / ("." + stem + suffix)).string();
+}
+
+// Where a write to `path` must land: `path` itself, or the file a symbolic link (or a chain of
+// them) points to, so that an output given as a link updates the linked file instead of
+// replacing the link by a regular file (as `sed -i --follow-symlinks` and editors do).
+std::string follow_links(const std::string& path) {
+  namespace fs = std::filesystem;
+  fs::path p(path);
+  for (int hops = 0; hops < 40; ++hops) {  // 40: Linux's limit (MAXSYMLINKS)
+    std::error_code ec;
+    if (!fs::is_symlink(fs::symlink_status(p, ec))) return p.string();
+    const fs::path to = fs::read_symlink(p, ec);
+    if (ec) return p.string();
+    p = to.is_absolute() ? to : p.parent_path() / to;
+  }
+  throw InputError(path, 0, "cannot write: Too many levels of symbolic links");
 }
 
 }  // namespace
@@ -71,8 +164,7 @@ int run(int argc, char** argv, const ToolSpec& spec,
         const std::function<void(CLI::App&)>& configure, const std::function<void()>& body) {
   std::setlocale(LC_ALL, "C");
   std::locale::global(std::locale::classic());
-  std::signal(SIGINT, remove_pending_and_reraise);
-  std::signal(SIGTERM, remove_pending_and_reraise);
+  for (int sig : kFatalSignals) std::signal(sig, remove_pending_and_reraise);
   log::set_program(spec.name);
 
   CLI::App app{spec.summary, spec.name};
@@ -92,6 +184,15 @@ int run(int argc, char** argv, const ToolSpec& spec,
   }
   log::set_level(quiet ? log::Level::Quiet : verbose ? log::Level::Verbose : log::Level::Normal);
 
+  // The body's committed outputs are renamed only when it returned and stdout took every byte:
+  // a run that fails at any point leaves every previous output as it was.
+  g_staging = true;
+  struct StagingOff {
+    ~StagingOff() {
+      g_staging = false;
+      discard_staged();
+    }
+  } staging_off;
   try {
     body();
     std::cout.flush();
@@ -99,6 +200,7 @@ int run(int argc, char** argv, const ToolSpec& spec,
       std::cerr << spec.name << ": error writing to stdout\n";
       return 1;
     }
+    rename_staged();
     return 0;
   } catch (const UsageError& e) {
     std::cerr << spec.name << ": " << e.what() << "\n";
@@ -112,18 +214,78 @@ int run(int argc, char** argv, const ToolSpec& spec,
   }
 }
 
+void publish_committed() { rename_staged(); }
+
 std::string source_name(const std::string& path) { return path == "-" ? "<stdin>" : path; }
 
-std::unique_ptr<std::istream> open_input(const std::string& path) {
-  if (path == "-" || path.empty()) {
-    auto in = std::make_unique<std::istream>(std::cin.rdbuf());
-    return in;
+namespace {
+
+// A read buffer over a file descriptor whose read errors name the file: libstdc++'s filebuf
+// reports an EIO as "basic_filebuf::underflow error reading the file" without saying which, and
+// std::cin's buffer turns it into an end of file. The stream holding it has badbit in its
+// exception mask, so the InputError reaches the caller through every istream operation.
+class FileReadBuf : public std::streambuf {
+public:
+  FileReadBuf(int fd, bool owned, std::string source) : fd_(fd), owned_(owned), source_(std::move(source)) {}
+  ~FileReadBuf() override {
+    if (owned_) ::close(fd_);
   }
+  FileReadBuf(const FileReadBuf&) = delete;
+  FileReadBuf& operator=(const FileReadBuf&) = delete;
+
+protected:
+  int_type underflow() override {
+    if (gptr() < egptr()) return traits_type::to_int_type(*gptr());
+    ssize_t n = 0;
+    do {
+      n = ::read(fd_, buffer_.data(), buffer_.size());
+    } while (n < 0 && errno == EINTR);
+    if (n < 0) throw InputError(source_, 0, std::string("read error: ") + std::strerror(errno));
+    if (n == 0) return traits_type::eof();
+    setg(buffer_.data(), buffer_.data(), buffer_.data() + n);
+    return traits_type::to_int_type(*gptr());
+  }
+
+private:
+  int fd_;
+  bool owned_;
+  std::string source_;
+  std::array<char, 1 << 16> buffer_{};
+};
+
+bool is_dev_null(int fd) {
+  struct stat a {}, b {};
+  return ::fstat(fd, &a) == 0 && ::stat("/dev/null", &b) == 0 && a.st_rdev == b.st_rdev;
+}
+
+class FileInput : public std::istream {
+public:
+  FileInput(int fd, bool owned, const std::string& source) : std::istream(nullptr), buf_(fd, owned, source) {
+    rdbuf(&buf_);
+    exceptions(std::ios::badbit);
+  }
+
+private:
+  FileReadBuf buf_;
+};
+
+}  // namespace
+
+std::unique_ptr<std::istream> open_input(const std::string& path) {
+  if (path == "-" || path.empty()) return std::make_unique<FileInput>(STDIN_FILENO, false, "<stdin>");
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) throw InputError(path, 0, "is a directory");
-  auto file = std::make_unique<std::ifstream>(path, std::ios::binary);
-  if (!*file) throw InputError(path, 0, std::string("cannot open: ") + std::strerror(errno));
-  return file;
+  const auto status = std::filesystem::status(path, ec);
+  if (std::filesystem::is_directory(status)) throw InputError(path, 0, "is a directory");
+  // A device other than a terminal (/dev/zero, /dev/urandom, a disk) is endless or not text:
+  // refused at once instead of read until the memory runs out. FIFOs and pipes are streams.
+  if (std::filesystem::is_block_file(status)) throw InputError(path, 0, "is a block device, not a file");
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw InputError(path, 0, std::string("cannot open: ") + std::strerror(errno));
+  if (std::filesystem::is_character_file(status) && ::isatty(fd) == 0 && !is_dev_null(fd)) {
+    ::close(fd);
+    throw InputError(path, 0, "is a device, not a file (an endless input)");
+  }
+  return std::make_unique<FileInput>(fd, true, path);
 }
 
 std::string read_all(const std::string& path, std::size_t max_bytes) {
@@ -160,6 +322,7 @@ bool copy_contents(const std::string& from, std::ostream& out) {
 }  // namespace
 
 OutputFile::OutputFile(std::string path) : path_(std::move(path)), to_stdout_(path_.empty() || path_ == "-") {
+  target_ = to_stdout_ ? path_ : follow_links(path_);
   std::error_code ec;
   const auto status = std::filesystem::status(path_, ec);
   direct_ = !to_stdout_ && !ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status);
@@ -177,7 +340,7 @@ OutputFile::~OutputFile() {
 const std::string& OutputFile::temp_path() {
   if (temp_.empty() && !to_stdout_ && !direct_) {
     // A library that writes by name would name the temporary file in its error: name the output.
-    const auto folder = std::filesystem::path(path_).parent_path();
+    const auto folder = std::filesystem::path(target_).parent_path();
     std::error_code ec;
     if (!folder.empty() && !std::filesystem::is_directory(folder, ec)) {
       throw InputError(path_, 0, std::string("cannot write: ") +
@@ -187,7 +350,7 @@ const std::string& OutputFile::temp_path() {
   if (temp_.empty()) {
     // stdout and devices: a private temporary file whose contents commit() copies over.
     temp_ = make_temp_name(to_stdout_ || direct_ ? std::filesystem::temp_directory_path() / "photomill-out"
-                                                 : std::filesystem::path(path_));
+                                                 : std::filesystem::path(target_));
     register_pending(temp_);
   }
   return temp_;
@@ -247,7 +410,15 @@ void OutputFile::commit() {
     // Nothing was written through stream() nor by name: create the (empty) file.
     std::ofstream touch(temp_, std::ios::binary);
   }
-  if (std::rename(temp_.c_str(), path_.c_str()) != 0) {
+  {
+    const std::lock_guard<std::mutex> lock(g_staged_mutex);
+    if (g_staging) {  // renamed by run() once every output of the run is complete
+      g_staged.push_back({temp_, target_, path_});
+      committed_ = true;
+      return;
+    }
+  }
+  if (std::rename(temp_.c_str(), target_.c_str()) != 0) {
     throw InputError(path_, 0, std::string("cannot rename temporary file: ") + std::strerror(errno));
   }
   unregister_pending(temp_);

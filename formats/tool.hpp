@@ -22,10 +22,17 @@ struct ToolSpec {
 // Builds the CLI11 app (adds --version, -q, -v), lets `configure` add the tool's options, parses,
 // then runs `body`. Returns the exit code: 0 ok (and for --help/--version), 2 bad usage
 // (CLI11 parse errors, photomill::UsageError), 1 for any other exception, whose message is
-// printed as "name: message" on stderr. Installs SIGINT/SIGTERM handlers that remove the
-// temporary files of unfinished OutputFiles.
+// printed as "name: message" on stderr. Outputs committed while `body` runs are renamed onto
+// their targets only after it returned and stdout took every byte: a run that fails anywhere
+// leaves every previous output as it was. Installs handlers for the signals that end a process
+// (SIGHUP, SIGINT, SIGQUIT, SIGTERM, SIGPIPE, ...) that remove the temporary files first.
 int run(int argc, char** argv, const ToolSpec& spec,
         const std::function<void(CLI::App&)>& configure, const std::function<void()>& body);
+
+// Renames the outputs committed so far in this run at once, for a run that hands its own outputs
+// to another program or reads them back (synth_accuracy writes a data set, then runs the stages
+// on it). Throws InputError naming the output whose rename failed.
+void publish_committed();
 
 // Source name used in messages: "<stdin>" for "-", else the path.
 std::string source_name(const std::string& path);
@@ -39,8 +46,10 @@ std::unique_ptr<std::istream> open_input(const std::string& path);
 std::string read_all(const std::string& path, std::size_t max_bytes);
 
 // An output that is either stdout ("-" or empty path) or a file written under a temporary name
-// in the same folder and renamed onto `path` by commit(). If the object is destroyed without
-// commit() (an exception, a signal), the temporary file is removed and `path` is untouched.
+// in the same folder and renamed onto `path` by commit() (inside run(): once the whole run
+// succeeded, see run()). If the object is destroyed without commit() (an exception, a signal),
+// the temporary file is removed and `path` is untouched. A `path` that is a symbolic link
+// updates the file it links to; the link stays.
 // A target that exists and is not a regular file (/dev/null, /dev/stdout, a FIFO) is written
 // directly: renaming onto it would replace the device (and as root it would succeed).
 class OutputFile {
@@ -54,6 +63,8 @@ public:
   // A file path that a library writing by name (Open CASCADE) can write to. For stdout outputs a
   // temporary file whose contents commit() copies to stdout.
   const std::string& temp_path();
+  // Checks that every byte reached the temporary file (flush and close included) and renames it
+  // onto the target; inside run() the rename waits for the end of the run.
   void commit();
   bool is_stdout() const { return to_stdout_; }
   const std::string& path() const { return path_; }
@@ -61,6 +72,7 @@ public:
 private:
   std::string path_;
   bool to_stdout_;
+  std::string target_;  // path_ with symbolic links followed
   std::string temp_;
   std::unique_ptr<std::ofstream> file_;
   bool committed_ = false;

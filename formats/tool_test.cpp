@@ -1,12 +1,19 @@
 // The tool contract's file handling: atomic outputs, clear input errors.
 #include "formats/tool.hpp"
 
+#include <sys/stat.h>
+
+#include <csignal>
 #include <fstream>
+#include <functional>
+#include <thread>
+#include <vector>
 #include <sstream>
 
 #include <gtest/gtest.h>
 
 #include "formats/error.hpp"
+#include "formats/text.hpp"
 #include "tests/temp_dir.hpp"
 
 namespace photomill::tool {
@@ -108,6 +115,131 @@ TEST(ReadAll, RefusesOversizedInputs) {
   std::ofstream(p) << std::string(1000, 'x');
   EXPECT_EQ(read_all(p.string(), 1000).size(), 1000u);
   EXPECT_THROW(read_all(p.string(), 999), InputError);
+}
+
+// run()'s body with the tool contract around it, as a main would call it.
+int run_body(const std::function<void()>& body) {
+  std::string name = "tool_test";
+  std::vector<char*> argv{name.data(), nullptr};
+  return run(1, argv.data(), {"tool_test", "test", "tool_test"}, [](CLI::App&) {}, body);
+}
+
+TEST(Run, RenamesTheOutputsOnlyWhenTheWholeRunSucceeded) {
+  test::TempDir dir;
+  const auto first = dir.path() / "first.csv", second = dir.path() / "second.csv";
+  std::ofstream(first) << "previous\n";
+  // The first output is complete and committed, then the run fails: it keeps its old content.
+  EXPECT_EQ(run_body([&] {
+              OutputFile a(first.string());
+              a.stream() << "new\n";
+              a.commit();
+              EXPECT_EQ(slurp(first), "previous\n");  // staged, not renamed yet
+              OutputFile b(second.string());
+              b.stream() << "half";
+              throw InputError("x.csv", 3, "bad");
+            }),
+            1);
+  EXPECT_EQ(slurp(first), "previous\n");
+  EXPECT_EQ(count_files(dir.path()), 1u) << "a temporary file was left behind";
+  // The same run succeeding renames both.
+  EXPECT_EQ(run_body([&] {
+              OutputFile a(first.string());
+              a.stream() << "new\n";
+              a.commit();
+              OutputFile b(second.string());
+              b.stream() << "second\n";
+              b.commit();
+            }),
+            0);
+  EXPECT_EQ(slurp(first), "new\n");
+  EXPECT_EQ(slurp(second), "second\n");
+  EXPECT_EQ(count_files(dir.path()), 2u);
+}
+
+TEST(OutputFile, ANameAsLongAsTheSystemAllowsCanBeWritten) {
+  test::TempDir dir;
+  const auto target = dir.path() / (std::string(250, 'n') + ".csv");  // 254 bytes, NAME_MAX is 255
+  OutputFile out(target.string());
+  out.stream() << "data\n";
+  out.commit();
+  EXPECT_EQ(slurp(target), "data\n");
+  EXPECT_EQ(count_files(dir.path()), 1u);
+}
+
+TEST(OutputFile, ASymbolicLinkUpdatesTheFileItNames) {
+  test::TempDir dir;
+  std::filesystem::create_directory(dir.path() / "real");
+  const auto file = dir.path() / "real" / "out.csv";
+  std::ofstream(file) << "previous\n";
+  const auto link = dir.path() / "link.csv";
+  std::filesystem::create_symlink("real/out.csv", link);
+  OutputFile out(link.string());
+  out.stream() << "new\n";
+  out.commit();
+  EXPECT_TRUE(std::filesystem::is_symlink(link));
+  EXPECT_EQ(slurp(file), "new\n");
+  // A dangling link creates the file it names.
+  const auto dangling = dir.path() / "dangling.csv";
+  std::filesystem::create_symlink("real/made.csv", dangling);
+  OutputFile made(dangling.string());
+  made.stream() << "made\n";
+  made.commit();
+  EXPECT_TRUE(std::filesystem::is_symlink(dangling));
+  EXPECT_EQ(slurp(dir.path() / "real" / "made.csv"), "made\n");
+}
+
+TEST(Run, AHangupRemovesTheTemporaryFiles) {
+  test::TempDir dir;
+  const auto target = dir.path() / "out.csv";
+  std::ofstream(target) << "previous\n";
+  for (int sig : {SIGHUP, SIGQUIT, SIGPIPE, SIGTERM}) {
+    EXPECT_EXIT(run_body([&] {
+                  OutputFile a(target.string());
+                  a.stream() << "new\n";
+                  a.commit();  // staged
+                  OutputFile b((dir.path() / "b.csv").string());
+                  b.stream() << "half" << std::flush;
+                  std::raise(sig);
+                }),
+                ::testing::KilledBySignal(sig), "");
+    EXPECT_EQ(slurp(target), "previous\n");
+    EXPECT_EQ(count_files(dir.path()), 1u) << "signal " << sig << " left a temporary file";
+  }
+}
+
+TEST(OpenInput, AReadErrorNamesTheFileAndLine) {
+  // Reading /proc/self/mem at offset 0 fails with EIO: the first page is never mapped.
+  if (!std::filesystem::exists("/proc/self/mem")) GTEST_SKIP() << "no /proc";
+  auto in = open_input("/proc/self/mem");
+  LineReader lines(*in, "/proc/self/mem");
+  try {
+    lines.next();
+    FAIL() << "read past an I/O error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), "/proc/self/mem:1: read error: Input/output error");
+  }
+  try {
+    read_all("/proc/self/mem", 1000);
+    FAIL() << "read past an I/O error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), "/proc/self/mem: read error: Input/output error");
+  }
+}
+
+TEST(OpenInput, EndlessDevicesAreRefusedAtOnceAndPipesAreStreams) {
+  try {
+    open_input("/dev/zero");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), "/dev/zero: is a device, not a file (an endless input)");
+  }
+  EXPECT_EQ(read_all("/dev/null", 10), "");
+  test::TempDir dir;
+  const auto fifo = dir.path() / "fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  std::thread writer([&] { std::ofstream(fifo) << "a,b\n1,2\n"; });
+  EXPECT_EQ(read_all(fifo.string(), 100), "a,b\n1,2\n");
+  writer.join();
 }
 
 }  // namespace

@@ -131,7 +131,11 @@ MatchInputs read_inputs(Cli& c) {
     for (const auto& path : paths) sources += (sources.empty() ? "" : ", ") + tool::source_name(path);
     throw InputError(sources, 0, "no observations: nothing to match");
   }
-  if (!c.poses.empty()) in.poses = read_poses(*tool::open_input(c.poses), tool::source_name(c.poses));
+  if (!c.poses.empty()) {
+    in.poses = read_poses(*tool::open_input(c.poses), tool::source_name(c.poses));
+    // Without a pose, matching would go on as if --poses had not been given (issue #25).
+    if (in.poses.empty()) throw InputError(tool::source_name(c.poses), 0, "no poses: the --poses file holds only its header");
+  }
   if (c.refine == "lsm" && !in.features.empty()) {
     if (c.lsm.min_half_window_px > c.lsm.max_half_window_px) {
       throw UsageError("--lsm-min-half-window-px is larger than --lsm-max-half-window-px");
@@ -206,6 +210,21 @@ void report(const MatchResult& r, const Cli& c) {
   for (const auto& [length, count] : r.track_lengths) hist += " " + std::to_string(length) + ": " + std::to_string(count) + ",";
   if (!r.track_lengths.empty()) hist.pop_back();
   log::info(r.track_lengths.empty() ? "no tracks" : hist);
+}
+
+void require_tracks(const MatchResult& r, const Cli& c) {
+  if (!r.tracks.empty()) return;
+  std::string sources;
+  for (const auto& p : c.inputs) sources += (sources.empty() ? "" : ", ") + tool::source_name(p);
+  if (!c.features_dir.empty()) sources += (sources.empty() ? "" : ", ") + c.features_dir;
+  if (sources.empty()) sources = "<stdin>";
+  std::size_t verified = 0;
+  for (const auto& p : r.pairs) verified += p.verified ? 1 : 0;
+  std::string why = "no tracks: no point is seen in two of the " + std::to_string(r.images.size()) + " images (" +
+                    std::to_string(r.pairs.size()) + " pairs looked at, " + std::to_string(verified) + " verified";
+  if (!r.dropped.empty()) why += ", " + std::to_string(r.dropped.size()) + " coded observations left out (-v lists them)";
+  why += "): do the photos overlap, and were the features detected in all of them?";
+  throw InputError(sources, 0, why);
 }
 
 }  // namespace photomill::match

@@ -32,5 +32,8 @@ MatchInputs read_inputs(Cli& cli);
 // The summary on stderr (pairs, inliers per pair, dropped observations, track lengths); with -v
 // one line per pair and every dropped observation.
 void report(const MatchResult& result, const Cli& cli);
+// Throws InputError naming the inputs and the cause when the result holds no track: a tracks
+// file with only its header is no answer (issue #25), and triangulate would blame it instead.
+void require_tracks(const MatchResult& result, const Cli& cli);
 
 }  // namespace photomill::match

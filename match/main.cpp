@@ -21,9 +21,10 @@ int main(int argc, char** argv) {
         const auto result = photomill::match::match(inputs, cli.options, [](const std::string& m) {
           photomill::log::debug(m);
         });
+        photomill::match::report(result, cli);
+        photomill::match::require_tracks(result, cli);
         photomill::tool::OutputFile out(cli.output);
         photomill::write_tracks(out.stream(), result.tracks);
         out.commit();
-        photomill::match::report(result, cli);
       });
 }

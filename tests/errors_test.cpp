@@ -342,6 +342,14 @@ void write_fixtures(const fs::path& dir) {
   // and naming an image that is a text file.
   f["obs_sizes.csv"] = replace_all(replace_all(obs, "board_00.jpg", "a.png"), "board_01.jpg", "b.png");
   f["obs_notimage.csv"] = replace_all(obs, "board_00.jpg", "notimage.png");
+  // One view given twice: board_00.jpg's lines again under the name copy.jpg.
+  {
+    std::string copy;
+    for (const auto& l : lines_of(obs)) {
+      if (l.rfind("board_00.jpg,", 0) == 0) copy += replace_all(l, "board_00.jpg", "copy.jpg") + "\n";
+    }
+    f["obs_repeated.csv"] = obs + copy;
+  }
 
   // Control points.
   f["ctl.csv"] = ctl;
@@ -371,6 +379,7 @@ void write_fixtures(const fs::path& dir) {
                                     "image_height: 750");
   f["cam_nan.yaml"] = replace_all(cam, "2400., 0., 999.5", "nan, 0., 999.5");
   f["cam_huge.yaml"] = replace_all(cam, "image_width: 2000", "image_width: 2000000000");
+  f["cam_fx.yaml"] = replace_all(cam, "2400., 0., 999.5", "1e308, 0., 999.5");
 
   // Point clouds (fitsurf).
   const std::string xyz = cloud_xyz();
@@ -387,6 +396,7 @@ void write_fixtures(const fs::path& dir) {
   f["cloud_header.ply"] = ply_header(0, "binary_little_endian");
   f["cloud_trunc.ply"] = ply.substr(0, ply.size() / 2);
   f["cloud_crlf.ply"] = crlf(ply_header(lines_of(xyz).size(), "ascii") + xyz);
+  f["cloud_bom.ply"] = bom(ply);
 
   // Surfaces (toolpath).
   const std::string surf = surface();
@@ -425,6 +435,18 @@ void write_fixtures(const fs::path& dir) {
   const std::string poses = read_text(demo / "poses.csv");
   f["poses.csv"] = poses;
   f["poses_other.csv"] = replace_all(poses, "part_", "other_");
+  f["poses_header.csv"] = header_only(poses);
+  // Two photos that share no point: part_01.jpg's point ids + 100000.
+  {
+    std::string two = header_only(pobs);
+    for (const auto& l : lines_of(pobs)) {
+      if (l.rfind("part_00.jpg,", 0) == 0) two += l + "\n";
+      if (l.rfind("part_01.jpg,", 0) != 0) continue;
+      const auto a = l.find(','), b = l.find(',', a + 1);
+      two += l.substr(0, a + 1) + std::to_string(100000 + std::stol(l.substr(a + 1, b - a - 1))) + l.substr(b) + "\n";
+    }
+    f["pobs_apart.csv"] = two;
+  }
 
   // Feature files (match --refine lsm reads the photos they name): two keypoints each.
   auto feat = [](const std::string& image, int w, int h) {
@@ -564,9 +586,55 @@ TEST(ErrorsTableCoverage, FailuresNameTheirSource) {
     ASSERT_EQ(r.message.rfind(prefix, 0), 0u) << "docs/errors.md:" << r.doc_line;
     const std::string rest = r.message.substr(prefix.size());
     const std::string source = rest.substr(0, rest.find(':'));
-    const bool file = source == "<stdin>" || (source.find('.') != std::string::npos && source.find(' ') == std::string::npos);
+    const bool file = source == "<stdin>" || (source.find(' ') == std::string::npos &&
+                                              (source.find('.') != std::string::npos || source.front() == '/'));
     EXPECT_TRUE(file) << "docs/errors.md:" << r.doc_line << ": the message does not begin with its source: " << r.message;
   }
+}
+
+// A run whose last output fails (a full disk: /dev/full) exits 1 and leaves every output of the
+// previous run as it was, the ones it had already written complete included (issue #25: a
+// failed triangulate left its new cloud.ply, so make saw a finished target; a failed detect
+// deleted the previous run's feature files).
+TEST(FailedRuns, LeaveEveryPreviousOutputAsItWas) {
+  if (!fs::is_character_file("/dev/full")) GTEST_SKIP() << "no /dev/full on this machine";
+  TempDir dir;
+  write_fixtures(dir.path());
+  const std::string previous = "the previous run's content\n";
+  struct Case {
+    std::string binary;
+    std::vector<std::string> args;
+    std::vector<std::string> outputs;  // written by the run before its last output fails
+  };
+  const std::vector<Case> cases{
+      {"triangulate", {"-c", "cam.yaml", "--control-points", "pctl.csv", "tracks.csv", "-o", "old.ply", "--poses", "old_poses.csv",
+                       "--report", "/dev/full"}, {"old.ply", "old_poses.csv"}},
+      {"calib", {"--control", "ctl.csv", "--image-size", "2000x1500", "obs.csv", "-o", "old.yaml", "--report", "/dev/full"},
+       {"old.yaml"}},
+      {"toolpath", {"part.surf", "-o", "old.cl", "--report", "/dev/full"}, {"old.cl"}},
+      {"fitsurf", {"--net", "6x6", "cloud.xyz", "-o", "old.surf", "--step", "/dev/full"}, {"old.surf"}},
+      {"detect", {"--features", "feats", "a.png", "b.png", "--aruco", "DICT_4X4_50", "-o", "/dev/full"},
+       {"feats/a.png.feat", "feats/b.png.feat"}},
+  };
+  fs::create_directories(dir.path() / "feats");
+  for (const auto& c : cases) {
+    for (const auto& o : c.outputs) std::ofstream(dir.path() / o, std::ios::binary) << previous;
+    const auto before = listing(dir.path());
+    std::vector<std::string> args{"-q"};
+    args.insert(args.end(), c.args.begin(), c.args.end());
+    const ToolResult r = run_tool(c.binary, args, "", dir.path());
+    EXPECT_EQ(r.exit_code, 1) << c.binary << ": " << r.err;
+    EXPECT_NE(r.err.find("/dev/full"), std::string::npos) << c.binary << ": the failed write is not named: " << r.err;
+    for (const auto& o : c.outputs) EXPECT_EQ(read_file(dir.path() / o), previous) << c.binary << " changed " << o;
+    EXPECT_EQ(listing(dir.path()), before) << c.binary << " left files behind";
+  }
+  // The same runs with every output writable write them all.
+  const ToolResult ok = run_tool("triangulate", {"-q", "-c", "cam.yaml", "--control-points", "pctl.csv", "tracks.csv",
+                                                 "-o", "old.ply", "--poses", "old_poses.csv", "--report", "new.json"},
+                                 "", dir.path());
+  EXPECT_EQ(ok.exit_code, 0) << ok.err;
+  EXPECT_NE(read_file(dir.path() / "old.ply"), previous);
+  EXPECT_TRUE(fs::is_regular_file(dir.path() / "new.json"));
 }
 
 }  // namespace

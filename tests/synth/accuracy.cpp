@@ -401,6 +401,7 @@ int main(int argc, char** argv) {
           o.surface_step_mm = 5;
           o.command_line = "synth_accuracy";
           synth::write_dataset(o, set.string());
+          tool::publish_committed();  // the stages below read the data set
           evaluate(set, out, run_pipeline(bin_dir, set, out, until, report), bounds, report);
         }
         for (const auto& name : report.expected_failures) {

@@ -56,13 +56,15 @@ void check_options(const SynthOptions& o) {
   if (!(o.part_height_mm > 0)) throw std::invalid_argument("part height must be positive");
 }
 
-// Writes through a temporary file renamed on success (no half-written truth on failure).
+// Writes through a temporary file renamed on success (no half-written truth on failure; inside
+// tool::run once the whole data set is written). Returns the bytes written.
 template <typename Writer>
 std::size_t write_file(const std::filesystem::path& path, const Writer& writer) {
   tool::OutputFile out(path.string());
   writer(out.stream());
+  const auto bytes = static_cast<std::size_t>(out.stream().tellp());
   out.commit();
-  return std::filesystem::file_size(path);
+  return bytes;
 }
 
 }  // namespace
