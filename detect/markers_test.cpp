@@ -522,6 +522,9 @@ INSTANTIATE_TEST_SUITE_P(
         GoldenCase{"unknown_dictionary", {"--aruco", "DICT_9X9_1", "{page}"}, 2, "DICT_9X9_1"},
         GoldenCase{"missing_dictionary_file", {"--aruco-dict-file", "{dir}/nodict.yml", "{page}"}, 1, "nodict.yml"},
         GoldenCase{"mask_without_markers", {"--features", "{dir}/feat", "--mask-markers", "{page}"}, 2, "--mask-markers"},
+        // Features alone make no observations: a named output would stay unwritten (exit 0 before).
+        GoldenCase{"output_without_markers", {"--features", "{dir}/feat", "-o", "{dir}/obs.csv", "{page}"}, 2,
+                   "no observations to write"},
         GoldenCase{"clearance_without_mask",
                    {"--aruco", "DICT_4X4_50", "--features", "{dir}/feat", "--mask-clearance-per-size", "1", "{page}"},
                    2,

@@ -141,6 +141,11 @@ void run_photos(PhotoCli c, const std::vector<std::string>& images, const std::s
   if (!c.scale_bars.empty() && !(c.marker_mm > 0)) throw UsageError("--scale-bars-out needs --marker-mm (the markers' side)");
   if (!c.scale_bars.empty() && !o.dictionary) throw UsageError("--scale-bars-out needs markers (--aruco or --aruco-dict-file)");
   if (!c.marker_ids.empty() && c.scale_bars.empty()) throw UsageError("--marker-ids needs --scale-bars-out");
+  // Features alone make no observations: an output named for them would silently stay unwritten.
+  if (!o.dictionary && output != "-") {
+    throw UsageError("-o " + output + ": without markers (--aruco or --aruco-dict-file) there are no observations to "
+                     "write; the features go to --features DIR");
+  }
   validate(o);
   std::map<std::string, fs::path> feat_paths;
   if (o.sift) {

@@ -28,7 +28,10 @@ struct SiftOptions {
   // in the quiet zones up to 0.1 mm off, with no neighbours to outvote them (docs/measurements/detect.md).
   double mask_clearance_per_size = 0;
   int octave_layers = 3;            // Lowe's s: scales sampled per octave
-  double contrast_threshold = 0.04; // OpenCV's default; OpenCV divides it by s (Lowe's 0.03 is 0.09)
+  // OpenCV's measure, divided by s (OpenCV's default 0.04; Lowe's 0.03 is 0.09 here, COLMAP's
+  // 0.0067 peak threshold 0.02). 0.01 keeps the weakly textured and shadowed surfaces that a
+  // part of plaster or cast metal has (docs/measurements/detect.md).
+  double contrast_threshold = 0.01;
   double edge_threshold = 10;       // Lowe's r: principal-curvature ratio limit
   double sigma = 1.6;               // Lowe's sigma of the first octave
   // OpenCV 4.6 reports keypoints in the coordinates of its 2x upsampled first octave halved,

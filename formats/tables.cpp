@@ -123,7 +123,9 @@ void write_tracks(std::ostream& out, const std::vector<TrackObservation>& tracks
 // A quaternion whose norm is off 1 by more than this is rejected as a typo, not normalised.
 constexpr double kQuaternionNormTolerance = 1e-6;
 
-std::vector<Pose> read_poses(std::istream& in, const std::string& source) {
+std::vector<Pose> read_poses(std::istream& in, const std::string& source) { return read_poses_numbered(in, source, nullptr); }
+
+std::vector<Pose> read_poses_numbered(std::istream& in, const std::string& source, std::vector<std::size_t>* lines) {
   CsvReader csv(in, source, {"image", "qw", "qx", "qy", "qz", "tx_mm", "ty_mm", "tz_mm"});
   std::vector<Pose> out;
   std::set<std::string> seen;
@@ -139,6 +141,7 @@ std::vector<Pose> read_poses(std::istream& in, const std::string& source) {
     }
     p.cam_from_world_translation_mm = {csv.number(5), csv.number(6), csv.number(7)};
     if (!seen.insert(p.image).second) csv.fail("image '" + p.image + "' has two poses");
+    if (lines) lines->push_back(csv.line_number());
     out.push_back(std::move(p));
   }
   return out;

@@ -87,6 +87,8 @@ std::vector<TrackObservation> read_tracks(std::istream& in, const std::string& s
 void write_tracks(std::ostream& out, const std::vector<TrackObservation>& tracks);
 
 std::vector<Pose> read_poses(std::istream& in, const std::string& source);
+// The same; `lines` receives each pose's line in the file (for errors found later).
+std::vector<Pose> read_poses_numbered(std::istream& in, const std::string& source, std::vector<std::size_t>* lines);
 void write_poses(std::ostream& out, const std::vector<Pose>& poses);
 
 std::vector<ScaleBar> read_scale_bars(std::istream& in, const std::string& source);

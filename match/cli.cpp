@@ -49,6 +49,9 @@ void add_options(CLI::App& app, Cli& c) {
       ->group(feat);
   app.add_option("--guided-ratio", o.guided_ratio, "Ratio test of guided matching (among the epipolar band's features)")
       ->group(feat)->capture_default_str()->check(CLI::Range(0.1, 1.0));
+  app.add_option("--guided-max-axis-angle-deg", o.guided_max_axis_angle_deg,
+                 "With --poses, match every pair whose optical axes are at most this far apart (and the pairs sharing coded points)")
+      ->group(feat)->capture_default_str()->check(CLI::Range(0.0, 180.0));
   app.add_option("--flann-checks", o.flann_checks, "FLANN kd-tree leaves visited per query")
       ->group(feat)->capture_default_str()->check(CLI::Range(1, 100000));
   app.add_option("--exhaustive-max-images", o.exhaustive_max_images, "Match all pairs up to this many images ...")

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cmath>
 #include <exception>
+#include <filesystem>
 #include <limits>
 #include <map>
 #include <memory>
@@ -311,11 +312,25 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
       data[image_index.at(fs.image)].grey = &g;
     }
   }
+  // A pose names its image exactly or, failing that, by file name when only one pose has it (the
+  // poses of another tool name photos relative to its own folder), as triangulate --known-poses.
   std::unordered_map<std::string, const Pose*> pose_of;
-  for (const auto& p : in.poses) pose_of[p.image] = &p;
   if (!in.poses.empty()) {
+    std::unordered_map<std::string, const Pose*> exact;
+    std::unordered_map<std::string, std::vector<const Pose*>> by_file;
+    for (const auto& p : in.poses) {
+      exact[p.image] = &p;
+      by_file[std::filesystem::path(p.image).filename().string()].push_back(&p);
+    }
     for (const auto& name : result.images) {
-      if (!pose_of.count(name)) throw InputError(name, 0, "no pose for this image in --poses");
+      if (const auto it = exact.find(name); it != exact.end()) {
+        pose_of[name] = it->second;
+      } else if (const auto f = by_file.find(std::filesystem::path(name).filename().string());
+                 f != by_file.end() && f->second.size() == 1) {
+        pose_of[name] = f->second.front();
+      } else {
+        throw InputError(name, 0, "no pose for this image in --poses");
+      }
     }
   }
   for (const auto& d : data) {
@@ -380,14 +395,26 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
       if (overlap[a][b] > 0) pair_set.emplace(a, b);
     }
   }
-  std::vector<std::size_t> with_features;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (data[i].index) with_features.push_back(i);
-  }
-  for (const auto& [x, y] : feature_pairs(with_features.size(), o, [&](std::size_t p, std::size_t q) {
-         return overlap[with_features[p]][with_features[q]];
-       })) {
-    pair_set.emplace(with_features[x], with_features[y]);
+  if (guided) {
+    // Optical axis in the world: the third row of R (cam_from_world), R^T (0, 0, 1).
+    const double min_cos = std::cos(o.guided_max_axis_angle_deg * std::numbers::pi / 180);
+    std::vector<Eigen::Vector3d> axis(n);
+    for (std::size_t i = 0; i < n; ++i) axis[i] = pose_of.at(result.images[i])->rotation().row(2).transpose();
+    for (std::size_t a = 0; a < n; ++a) {
+      for (std::size_t b = a + 1; b < n; ++b) {
+        if (data[a].features && data[b].features && axis[a].dot(axis[b]) >= min_cos) pair_set.emplace(a, b);
+      }
+    }
+  } else {
+    std::vector<std::size_t> with_features;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (data[i].index) with_features.push_back(i);
+    }
+    for (const auto& [x, y] : feature_pairs(with_features.size(), o, [&](std::size_t p, std::size_t q) {
+           return overlap[with_features[p]][with_features[q]];
+         })) {
+      pair_set.emplace(with_features[x], with_features[y]);
+    }
   }
   const std::vector<std::pair<std::size_t, std::size_t>> pairs(pair_set.begin(), pair_set.end());
 
@@ -445,6 +472,14 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
         if (inlier[static_cast<std::size_t>(w.report.coded_shared) + m]) w.inlier_matches.push_back(matches[m]);
       }
       w.report.feature_inliers = static_cast<int>(w.inlier_matches.size());
+    }
+    // With poses F needs no matches, but a pair whose matches agree with it fewer than
+    // --min-inliers times is no verified pair: its feature matches are chance agreements along
+    // the epipolar lines. (F still judges its coded points, which carry their ids.)
+    if (w.report.from_poses && w.report.coded_inliers + w.report.feature_inliers < o.fit.min_inliers) {
+      w.report.verified = false;
+      w.inlier_matches.clear();
+      w.report.feature_inliers = 0;
     }
     const std::size_t finished = ++done;
     if (progress && (finished % 10 == 0 || finished == pairs.size())) {

@@ -43,6 +43,10 @@ struct MatchOptions {
   // `ratio`: the band holds ~50 candidates, not the whole photo; on the demo 0.6 gives as many
   // tracks as the kd-tree search at 0.8, 0.7 and 0.8 mostly more wrong ones).
   double guided_ratio = 0.6;
+  // With known poses, the pairs matched along their epipolar lines: every pair whose optical
+  // axes are at most this far apart (views of one side of a part overlap; views from opposite
+  // sides do not), besides every pair that shares coded points.
+  double guided_max_axis_angle_deg = 75;
   std::size_t min_track_length = 2;
   TrackId feature_track_offset = 1'000'000;
   // Which pairs are matched by descriptor: all pairs up to `exhaustive_max_images` images;

@@ -214,6 +214,24 @@ INSTANTIATE_TEST_SUITE_P(
                      EXPECT_LT(feature_tracks(r), feature_tracks(wide)) << r.r.err << wide.r.err;
                    }},
         bad("guided_ratio_0_05", {"--guided-ratio", "0.05"}, "--guided-ratio"),
+        // With poses and no markers every pair of overlapping views is matched along its epipolar
+        // lines (before: only the pairs sharing coded points, so none, and "no tracks").
+        OptionCase{"guided_max_axis_angle_deg", features_only({"--poses", "{demo}poses.csv"}), 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(pairs(r), 3) << r.r.err;
+                     EXPECT_GT(feature_tracks(r), 0) << r.r.err;
+                     const Outcome none = match(features_only({"--poses", "{demo}poses.csv", "--guided-max-axis-angle-deg", "0"}));
+                     EXPECT_EQ(none.r.exit_code, 1) << none.r.err;
+                     EXPECT_NE(none.r.err.find("no tracks"), std::string::npos) << none.r.err;
+                   }},
+        bad("guided_max_axis_angle_deg_negative", {"--guided-max-axis-angle-deg", "-1"}, "--guided-max-axis-angle-deg"),
+        // With poses a pair needs --min-inliers matches along F to count as verified.
+        OptionCase{"min_inliers_with_poses", features({"--poses", "{demo}poses.csv", "--min-inliers", "100000"}), 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(verified(r), 0) << r.r.err;
+                     EXPECT_LE(feature_tracks(r), 0) << r.r.err;  // -1: no natural-feature line at all
+                     EXPECT_GT(feature_tracks(match(features({"--poses", "{demo}poses.csv"}))), 0);
+                   }},
         OptionCase{"exhaustive_max_images", features_only({"--exhaustive-max-images", "2", "--sequence-neighbours", "1"}), 0, "",
                    [](const Outcome& r) {
                      // Three images, more than 2: each with its next one only (2 pairs of the 3).

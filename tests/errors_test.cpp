@@ -436,6 +436,7 @@ void write_fixtures(const fs::path& dir) {
   f["poses.csv"] = poses;
   f["poses_other.csv"] = replace_all(poses, "part_", "other_");
   f["poses_header.csv"] = header_only(poses);
+  f["poses_nan.csv"] = set_field(poses, 3, 5, "nan");
   // Two photos that share no point: part_01.jpg's point ids + 100000.
   {
     std::string two = header_only(pobs);

@@ -183,8 +183,11 @@ std::shared_ptr<ceres::ParameterBlockOrdering> build_problem(Scene& scene, const
     double* pose = scene.images[i].cam_from_world.data();
     ordering->AddElementToGroup(pose, 1);
     ++out.images;
-    if (setup.fix_poses || (setup.fixed_image && *setup.fixed_image == i)) {
+    const KnownPose* known = setup.known_pose(i);
+    if (setup.pose_fixed(i)) {
       problem.SetParameterBlockConstant(pose);
+    } else if (known) {
+      problem.AddResidualBlock(PosePrior::create(known->cam_from_world, known->sigma_mm, known->sigma_rad), nullptr, pose);
     } else if (setup.fixed_translation && setup.fixed_translation->first == i) {
       problem.SetManifold(pose, new ceres::SubsetManifold(6, {3 + setup.fixed_translation->second}));
     }
@@ -207,8 +210,16 @@ BundleSummary bundle_adjust(Scene& scene, const BundleSetup& setup, const Bundle
   ceres::Solver::Options so;
   so.linear_solver_type = choose_solver(options, out.images);
   so.preconditioner_type = ceres::SCHUR_JACOBI;
-  if (ordering->GroupSize(0) > 0) {
+  // With every pose (and the intrinsics) constant, nothing is left once the points are
+  // eliminated, which the Schur solvers cannot take: each point is then its own small problem.
+  bool any_free_camera = false;
+  if (const auto g = ordering->group_to_elements().find(1); g != ordering->group_to_elements().end()) {
+    for (double* block : g->second) any_free_camera = any_free_camera || !problem.IsParameterBlockConstant(block);
+  }
+  if (ordering->GroupSize(0) > 0 && any_free_camera) {
     so.linear_solver_ordering = ordering;
+  } else if (ordering->GroupSize(0) > 0) {
+    so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
   } else {
     // Nothing to eliminate (every point is in a scale bar): a plain sparse solve.
     so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;

@@ -50,6 +50,16 @@ struct ScaleConstraint {
   double sigma_mm = 0;
 };
 
+// A camera pose given by the user (triangulate --known-poses): held constant when its sigmas are
+// 0, else a prior with those standard deviations (residuals.hpp's PosePrior).
+struct KnownPose {
+  std::size_t image = 0;        // index into Scene::images
+  PoseBlock cam_from_world{};
+  double sigma_mm = 0;          // of the camera centre, per axis
+  double sigma_rad = 0;         // of the rotation, per axis
+  bool fixed() const { return sigma_mm == 0 || sigma_rad == 0; }
+};
+
 // The datum and weights of one adjustment.
 struct BundleSetup {
   // Reprojection residuals are divided by the sigma of their observation's class (pixels) times
@@ -65,6 +75,21 @@ struct BundleSetup {
   std::optional<std::pair<std::size_t, int>> fixed_translation;
   // Hold all poses constant (a structure-only adjustment).
   bool fix_poses = false;
+  // Poses the user gave: held constant or held by a prior.
+  std::vector<KnownPose> known_poses;
+  // The known pose of an image, or nullptr.
+  const KnownPose* known_pose(std::size_t image) const {
+    for (const KnownPose& k : known_poses) {
+      if (k.image == image) return &k;
+    }
+    return nullptr;
+  }
+  // True if the image's pose is a constant of the adjustment.
+  bool pose_fixed(std::size_t image) const {
+    if (fix_poses || (fixed_image && *fixed_image == image)) return true;
+    const KnownPose* k = known_pose(image);
+    return k && k->fixed();
+  }
 };
 
 struct BundleSummary {

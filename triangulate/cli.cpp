@@ -4,11 +4,13 @@
 #include <algorithm>
 #include <map>
 #include <set>
+#include <sstream>
 
 #include "formats/camera_bounds.hpp"
 #include "formats/error.hpp"
 #include "formats/text.hpp"
 #include "formats/tool.hpp"
+#include "triangulate/colmap.hpp"
 
 namespace photomill::triangulate {
 namespace {
@@ -86,6 +88,16 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_flag("--arbitrary-scale", o.scale.allow_arbitrary_scale,
                "Without any datum, go on in the arbitrary scale of the first image pair")->group(scale);
 
+  const std::string known = "Known poses";
+  app.add_option("--known-poses", c.known_poses,
+                 "Camera poses known beforehand (a poses CSV as --poses writes it, or COLMAP's images.txt; "
+                 "cam_from_world, mm): held fixed, or priors with --pose-sigma-mm/--pose-sigma-deg; "
+                 "they are the datum")->group(known);
+  app.add_option("--pose-sigma-mm", o.pose_sigma_mm, "Sigma of a known camera centre per axis (with --pose-sigma-deg)")
+      ->check(CLI::PositiveNumber)->group(known);
+  app.add_option("--pose-sigma-deg", o.pose_sigma_deg, "Sigma of a known camera rotation per axis (with --pose-sigma-mm)")
+      ->check(CLI::PositiveNumber)->group(known);
+
   const std::string ba = "Bundle adjustment";
   app.add_option("--refine-intrinsics", c.refine_intrinsics, "Self-calibration: which intrinsics to adjust")
       ->check(CLI::IsMember(keys(kRefine)))->capture_default_str()->group(ba);
@@ -138,6 +150,10 @@ void add_options(CLI::App& app, Cli& c) {
       ->check(CLI::Range(4, 1000000))->capture_default_str()->group(geo);
   app.add_option("--pnp-min-inliers", o.pnp_min_inliers, "Inliers PnP against triangulated points needs")
       ->check(CLI::Range(4, 1000000))->capture_default_str()->group(geo);
+  app.add_option("--relative-min-scale-points", o.relative_min_scale_points,
+                 "An image PnP cannot place is registered from its relative pose to a registered one when this many "
+                 "points fix the baseline's length (0: never)")
+      ->check(CLI::Range(0, 1000000))->capture_default_str()->group(geo);
   app.add_option("--min-shared-tracks", o.min_shared_tracks, "Tracks an initial image pair must share")
       ->check(CLI::Range(5, 1000000))->capture_default_str()->group(geo);
   app.add_option("--initial-min-angle-deg", o.initial_min_angle_deg, "Median intersection angle of the initial pair")
@@ -155,6 +171,10 @@ ReconstructOptions to_options(const Cli& c) {
   o.scale.marker_side_mm = c.marker_side_mm;
   o.scale.marker_ids = parse_ranges(c.marker_ids);
   o.observation_sigma_px = c.observation_sigma_px;
+  if (o.pose_sigma_mm.has_value() != o.pose_sigma_deg.has_value()) {
+    throw UsageError("--pose-sigma-mm and --pose-sigma-deg go together (a pose prior needs both)");
+  }
+  if (o.pose_sigma_mm && c.known_poses.empty()) throw UsageError("--pose-sigma-mm needs --known-poses");
   if (o.outliers.min_px > o.outliers.max_px) throw UsageError("--outlier-min-px is larger than --outlier-max-px");
   if (!c.refined_camera.empty() && o.bundle.refine_intrinsics == IntrinsicsRefinement::None) {
     throw UsageError("--refined-camera needs --refine-intrinsics");
@@ -165,7 +185,11 @@ ReconstructOptions to_options(const Cli& c) {
   for (const std::string* p : {&c.output, &c.poses, &c.report, &c.refined_camera}) to_stdout += *p == "-" ? 1 : 0;
   if (c.output.empty()) ++to_stdout;
   if (to_stdout > 1) throw UsageError("only one output can go to stdout ('-')");
-  if (c.tracks == "-" && (c.camera == "-" || c.control_points == "-" || c.scale_bars == "-")) {
+  int from_stdin = 0;
+  for (const std::string* p : {&c.tracks, &c.camera, &c.control_points, &c.scale_bars, &c.known_poses}) {
+    from_stdin += *p == "-" ? 1 : 0;
+  }
+  if (from_stdin > 1) {
     throw UsageError("only one input can come from stdin ('-')");
   }
   return o;
@@ -193,7 +217,32 @@ ReconstructInput read_input(const Cli& c) {
   if (!c.scale_bars.empty()) {
     in.scale_bars = read_scale_bars(*tool::open_input(c.scale_bars), tool::source_name(c.scale_bars));
   }
+  if (!c.known_poses.empty()) {
+    in.known_poses_source = tool::source_name(c.known_poses);
+    in.known_poses = read_known_poses(*tool::open_input(c.known_poses), in.known_poses_source, &in.known_pose_lines);
+    if (in.known_poses.empty()) throw InputError(in.known_poses_source, 0, "holds no pose");
+  }
   return in;
+}
+
+std::vector<Pose> read_known_poses(std::istream& in, const std::string& source, std::vector<std::size_t>* lines) {
+  std::ostringstream all;
+  all << in.rdbuf();
+  std::string text = std::move(all).str();
+  if (text.compare(0, 3, "\xEF\xBB\xBF") == 0) text.erase(0, 3);
+  std::istringstream first(text);
+  std::string line;
+  bool csv = false;
+  while (std::getline(first, line)) {
+    const std::string_view t = trim(line);
+    if (t.empty() || t.front() == '#') continue;
+    // A CSV header (poses or any other table, whose reader then names what is wrong) has commas;
+    // COLMAP's lines have none.
+    csv = t.find(',') != std::string_view::npos;
+    break;
+  }
+  std::istringstream body(text);
+  return csv ? read_poses_numbered(body, source, lines) : read_colmap_images(body, source, lines);
 }
 
 }  // namespace photomill::triangulate

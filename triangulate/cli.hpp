@@ -17,6 +17,7 @@ struct Cli {
   std::string camera;
   std::string control_points;
   std::string scale_bars;
+  std::string known_poses;        // photomill's poses CSV or COLMAP's images.txt
   std::string output = "-";
   std::string ply_encoding = "binary";
   std::string poses;
@@ -39,5 +40,8 @@ void add_options(CLI::App& app, Cli& cli);
 ReconstructOptions to_options(const Cli& cli);
 // Reads the input files named on the command line; throws InputError naming file and line.
 ReconstructInput read_input(const Cli& cli);
+// Known poses from photomill's poses CSV (header image,qw,...) or COLMAP's images.txt, told apart
+// by the first line that is not blank or a comment; lines receives each pose's line.
+std::vector<Pose> read_known_poses(std::istream& in, const std::string& source, std::vector<std::size_t>* lines);
 
 }  // namespace photomill::triangulate

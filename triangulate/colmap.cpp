@@ -2,7 +2,9 @@
 #include "triangulate/colmap.hpp"
 
 #include <filesystem>
+#include <cmath>
 #include <map>
+#include <set>
 
 #include "formats/error.hpp"
 #include "formats/text.hpp"
@@ -161,6 +163,57 @@ void write_colmap_points(std::ostream& out, const Reconstruction& r) {
     }
     out << "\n";
   }
+}
+
+std::vector<Pose> read_colmap_images(std::istream& in, const std::string& source, std::vector<std::size_t>* lines) {
+  // A unit quaternion as COLMAP writes it (17 digits) meets this easily; a typo does not.
+  constexpr double kQuaternionNormTolerance = 1e-6;
+  LineReaderOptions options;
+  options.skip_comments_and_blank = false;  // an image without points has an empty POINTS2D line
+  LineReader reader(in, source, options);
+  std::vector<Pose> poses;
+  std::set<std::string> names;
+  std::set<std::int64_t> ids;
+  while (const auto raw = reader.next()) {
+    const std::string_view line = trim(*raw);
+    if (line.empty() || line.front() == '#') continue;
+    const std::vector<std::string_view> f = split_whitespace(line);
+    if (f.size() != 10) {
+      reader.fail("expected an image line of COLMAP's images.txt, 10 fields IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID "
+                  "NAME; found " + std::to_string(f.size()));
+    }
+    const auto id = parse_int(f[0]);
+    if (!id || *id < 0) reader.fail("IMAGE_ID '" + std::string(f[0]) + "' is not a non-negative integer");
+    if (!ids.insert(*id).second) reader.fail("IMAGE_ID " + std::string(f[0]) + " appears twice");
+    static const char* const kNames[] = {"", "QW", "QX", "QY", "QZ", "TX", "TY", "TZ"};
+    double v[8] = {};
+    for (std::size_t k = 1; k < 8; ++k) {
+      const auto x = parse_double(f[k]);
+      if (!x) reader.fail(std::string(kNames[k]) + " '" + std::string(f[k]) + "' is not a finite number");
+      v[k] = *x;
+    }
+    if (!parse_int(f[8])) reader.fail("CAMERA_ID '" + std::string(f[8]) + "' is not an integer");
+    Pose p;
+    p.image = std::string(f[9]);
+    p.cam_from_world_rotation = Eigen::Quaterniond(v[1], v[2], v[3], v[4]);
+    const double norm = p.cam_from_world_rotation.norm();
+    if (std::abs(norm - 1.0) > kQuaternionNormTolerance) {
+      reader.fail("QW QX QY QZ is not a unit quaternion: norm " + format_double(norm));
+    }
+    p.cam_from_world_translation_mm = {v[5], v[6], v[7]};
+    if (!names.insert(p.image).second) reader.fail("image '" + p.image + "' has two poses");
+    if (lines) lines->push_back(reader.line_number());
+    poses.push_back(std::move(p));
+    // Its POINTS2D line: X Y POINT3D_ID triples. An image line in its place means one was dropped.
+    if (const auto points = reader.next()) {
+      const std::size_t n = split_whitespace(trim(*points)).size();
+      if (n % 3 != 0) {
+        reader.fail("expected the POINTS2D line of image '" + poses.back().image + "' (X Y POINT3D_ID triples); found " +
+                    std::to_string(n) + " fields");
+      }
+    }
+  }
+  return poses;
 }
 
 ColmapModelFiles::ColmapModelFiles(std::string folder) : folder_(std::move(folder)) {}

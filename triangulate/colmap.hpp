@@ -33,6 +33,17 @@ void write_colmap_cameras(std::ostream& out, const Reconstruction& r);
 void write_colmap_images(std::ostream& out, const Reconstruction& r);
 void write_colmap_points(std::ostream& out, const Reconstruction& r);
 
+// Reads the poses of COLMAP's images.txt (the format written above and by COLMAP 3.8): '#'
+// comments, then per image the line IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME (cam_from_world,
+// Hamilton, w first) and the next line, its POINTS2D (X Y POINT3D_ID triples, may be empty),
+// which is checked for its shape and skipped. Translations are taken as mm (a photomill model
+// is in mm; a COLMAP model's scale is whatever its datum made it). The camera id is not used.
+// Throws InputError naming the line: not 10 fields, a number that is not one, a quaternion
+// that is not a unit one, an image named twice, a POINTS2D line that is not triples.
+// lines, if given, receives each pose's line.
+std::vector<Pose> read_colmap_images(std::istream& in, const std::string& source,
+                                     std::vector<std::size_t>* lines = nullptr);
+
 // The three files in a folder, written under temporary names and renamed by commit() (so a
 // failed run leaves no model that looks finished). write() creates the folder if missing.
 class ColmapModelFiles {

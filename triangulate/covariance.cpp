@@ -9,6 +9,7 @@
 #include <Eigen/Dense>
 
 #include "geometry/parallel.hpp"
+#include "triangulate/residuals.hpp"
 
 namespace photomill::triangulate {
 namespace {
@@ -59,7 +60,7 @@ Columns assign_columns(const Scene& scene, const BundleSetup& setup, const Bundl
   c.eliminated.assign(scene.tracks.size(), 0);
   c.variable.assign(scene.tracks.size(), 0);
   for (std::size_t i = 0; i < scene.images.size(); ++i) {
-    if (!layout.image_used[i] || setup.fix_poses || (setup.fixed_image && *setup.fixed_image == i)) continue;
+    if (!layout.image_used[i] || setup.pose_fixed(i)) continue;
     for (int k = 0; k < 6; ++k) {
       const bool fixed = setup.fixed_translation && setup.fixed_translation->first == i &&
                          k == 3 + setup.fixed_translation->second;
@@ -252,6 +253,32 @@ PointUncertainty point_uncertainty(const Scene& scene, const BundleSetup& setup,
     }
     const Eigen::VectorXd j = Eigen::Map<Eigen::VectorXd>(values.data(), static_cast<Eigen::Index>(values.size()));
     scatter_add(S, idx, j * j.transpose());
+  }
+
+  // Pose priors (residuals.hpp's PosePrior), their Jacobian by dual numbers, into the pose's columns.
+  for (const KnownPose& k : setup.known_poses) {
+    if (k.fixed() || k.image >= scene.images.size() || !layout.image_used[k.image]) continue;
+    using Jet = ceres::Jet<double, 6>;
+    const PoseBlock& pose = scene.images[k.image].cam_from_world;
+    Jet p[6], r[6];
+    for (int i = 0; i < 6; ++i) p[i] = Jet(pose[static_cast<std::size_t>(i)], i);
+    const PosePrior prior(k.cam_from_world, k.sigma_mm, k.sigma_rad);
+    prior(p, r);
+    residuals += 6;
+    for (int i = 0; i < 6; ++i) sum_r2 += r[i].a * r[i].a;
+    if (!full) continue;
+    std::vector<int> idx, local;
+    for (int c = 0; c < 6; ++c) {
+      const int col = cols.pose[k.image][static_cast<std::size_t>(c)];
+      if (col < 0) continue;
+      idx.push_back(col);
+      local.push_back(c);
+    }
+    Eigen::MatrixXd J(6, static_cast<Eigen::Index>(local.size()));
+    for (int i = 0; i < 6; ++i) {
+      for (std::size_t c = 0; c < local.size(); ++c) J(i, static_cast<Eigen::Index>(c)) = r[i].v[local[c]];
+    }
+    scatter_add(S, idx, J.transpose() * J);
   }
 
   const std::size_t unknowns = static_cast<std::size_t>(cols.f) + 3 * cols.e_points;

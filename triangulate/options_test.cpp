@@ -41,6 +41,7 @@ public:
     write("tracks.csv", [&](std::ostream& s) { write_tracks(s, t.tracks); });
     write("camera.yaml", [&](std::ostream& s) { write_camera_yaml(s, t.camera); });
     write("control.csv", [&](std::ostream& s) { write_control_points(s, t.plate_points); });
+    write("poses.csv", [&](std::ostream& s) { write_poses(s, t.poses); });
     const auto& p = t.plate_points;
     write("bars.csv", [&](std::ostream& s) {
       s << "point_a,point_b,distance_mm\n" << p.front().point_id << "," << p.back().point_id << ","
@@ -79,6 +80,7 @@ Outcome triangulate(Scene kind, std::vector<std::string> args) {
   for (std::string& a : args) {
     if (a == "{control}") a = f.path("control.csv"), datum = true;
     if (a == "{bars}") a = f.path("bars.csv"), datum = true;
+    if (a == "{poses}") a = f.path("poses.csv"), datum = true;
     if (a == "{refined}") a = (dir.path() / "refined.yaml").string();
     if (a == "--marker-side-mm" || a == "--arbitrary-scale") datum = true;
   }
@@ -159,6 +161,24 @@ INSTANTIATE_TEST_SUITE_P(
                      EXPECT_EQ(unused_bars(triangulate(Scene::Markers, {"--marker-side-mm", "20"})), 0u);
                    }},
         bad("marker_side_tolerance_zero", {"--marker-side-tolerance", "0"}, "--marker-side-tolerance"),
+        // Known poses
+        OptionCase{"known_poses", Scene::Plain, {"--known-poses", "{poses}"}, 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(json_raw(r.report, "pose_initialisation"), "\"known_poses\"");
+                     EXPECT_EQ(json_raw(r.report, "type", "datum"), "\"known_poses\"") << r.report;
+                     EXPECT_EQ(json_number(r.report, "known_poses", "datum"), 12);
+                     EXPECT_EQ(json_raw(r.report, "pose_sigma_mm", "datum"), "null");
+                   }},
+        OptionCase{"pose_sigma_mm", Scene::Plain,
+                   {"--known-poses", "{poses}", "--pose-sigma-mm", "0.5", "--pose-sigma-deg", "0.05"}, 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(json_number(r.report, "pose_sigma_mm", "datum"), 0.5) << r.report;
+                     EXPECT_EQ(json_number(r.report, "pose_sigma_deg", "datum"), 0.05);
+                   }},
+        bad("pose_sigma_mm_alone", {"--known-poses", "{poses}", "--pose-sigma-mm", "1"}, "--pose-sigma-deg"),
+        bad("pose_sigma_deg_zero", {"--known-poses", "{poses}", "--pose-sigma-mm", "1", "--pose-sigma-deg", "0"},
+            "--pose-sigma-deg"),
+        bad("pose_sigma_without_known_poses", {"--pose-sigma-mm", "1", "--pose-sigma-deg", "1"}, "--known-poses"),
         // Bundle adjustment
         OptionCase{"loss_scale_px", Scene::Plain, {"--loss", "cauchy", "--loss-scale-px", "3.5"}, 0, "",
                    [](const Outcome& r) { EXPECT_EQ(json_number(r.report, "loss_scale_px", "bundle_adjustment"), 3.5); }},
@@ -221,9 +241,17 @@ INSTANTIATE_TEST_SUITE_P(
                      EXPECT_EQ(json_raw(plain().report, "pose_initialisation"), "\"control_pnp\"");
                    }},
         bad("control_min_points_three", {"--control-min-points", "3"}, "--control-min-points"),
-        OptionCase{"pnp_min_inliers", Scene::Plain, {"--arbitrary-scale", "--pnp-min-inliers", "100000"}, 0, "",
-                   // Only the initial pair: no image can be added by PnP.
+        OptionCase{"pnp_min_inliers", Scene::Plain,
+                   {"--arbitrary-scale", "--pnp-min-inliers", "100000", "--relative-min-scale-points", "0"}, 0, "",
+                   // Only the initial pair: no image can be added by PnP (nor by relative pose).
                    [](const Outcome& r) { EXPECT_EQ(json_number(r.report, "registered_images"), 2) << r.r.err; }},
+        OptionCase{"relative_min_scale_points", Scene::Plain, {"--arbitrary-scale", "--pnp-min-inliers", "100000"}, 0, "",
+                   // Without PnP every image is registered from its relative pose to one in the model.
+                   [](const Outcome& r) {
+                     EXPECT_EQ(json_number(r.report, "registered_images"), 12) << r.r.err;
+                     EXPECT_EQ(count_of(r.report, "\"registered_by\":\"relative_pose\""), 10u) << r.report;
+                   }},
+        bad("relative_min_scale_points_negative", {"--relative-min-scale-points", "-1"}, "--relative-min-scale-points"),
         bad("pnp_min_inliers_three", {"--pnp-min-inliers", "3"}, "--pnp-min-inliers"),
         OptionCase{"min_shared_tracks", Scene::Plain, {"--scale-bars", "{bars}", "--min-shared-tracks", "100000"}, 1,
                    "no two images share 100000", nullptr},

@@ -5,6 +5,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <map>
 #include <numbers>
@@ -42,9 +43,12 @@ public:
 
 private:
   void check_input();
+  void register_from_known();
+  void place_control_points();
   bool register_from_control();
   void start_incremental();
   void grow();
+  bool register_by_relative_pose(const std::set<std::size_t>& skip);
   void intermediate_adjustment();
   bool align_to_control();
   void build_scale_constraints();
@@ -66,6 +70,7 @@ private:
   std::vector<ScaleConstraint> bars_;  // resolved scale constraints
   std::vector<std::size_t> bar_report_;  // bars_[i] -> report_.scale_bars index
   std::size_t last_ba_registered_ = 0;
+  std::set<std::size_t> relative_tried_;  // images once registered from a relative pose (only once)
   BundleSummary last_;
 };
 
@@ -114,6 +119,67 @@ void Pipeline::check_input() {
   }
 }
 
+// The user's poses: each names an image of the tracks, exactly or (failing that) by its file
+// name alone when only one image has it (a COLMAP model names images relative to its folder).
+void Pipeline::register_from_known() {
+  std::map<std::string, std::size_t> by_name;
+  std::map<std::string, std::vector<std::size_t>> by_file;
+  for (std::size_t i = 0; i < scene_.images.size(); ++i) {
+    by_name[scene_.images[i].name] = i;
+    by_file[std::filesystem::path(scene_.images[i].name).filename().string()].push_back(i);
+  }
+  const std::string& src = input_.known_poses_source;
+  std::set<std::size_t> taken;
+  for (std::size_t k = 0; k < input_.known_poses.size(); ++k) {
+    const Pose& p = input_.known_poses[k];
+    const std::size_t line = k < input_.known_pose_lines.size() ? input_.known_pose_lines[k] : 0;
+    std::optional<std::size_t> image;
+    if (const auto it = by_name.find(p.image); it != by_name.end()) {
+      image = it->second;
+    } else if (const auto f = by_file.find(std::filesystem::path(p.image).filename().string());
+               f != by_file.end() && f->second.size() == 1) {
+      image = f->second.front();
+    }
+    if (!image) {
+      throw InputError(src, line, "image '" + p.image + "' is not in the tracks (" + input_.tracks_source +
+                                      "): a pose for a photo that was not matched; check the names");
+    }
+    if (!taken.insert(*image).second) {
+      throw InputError(src, line, "a second pose for image '" + scene_.images[*image].name + "'");
+    }
+    SceneImage& im = scene_.images[*image];
+    im.registered = true;
+    im.cam_from_world = make_pose(p.rotation(), p.cam_from_world_translation_mm);
+    registered_by_[*image] = "known_pose";
+    KnownPose known{*image, im.cam_from_world, 0, 0};
+    if (o_.pose_sigma_mm && o_.pose_sigma_deg) {
+      known.sigma_mm = *o_.pose_sigma_mm;
+      known.sigma_rad = *o_.pose_sigma_deg * std::numbers::pi / 180;
+    }
+    setup_.known_poses.push_back(known);
+  }
+  report_.known_poses = taken.size();
+  if (o_.pose_sigma_mm && o_.pose_sigma_deg) {
+    report_.pose_sigma_mm = o_.pose_sigma_mm;
+    report_.pose_sigma_deg = o_.pose_sigma_deg;
+  }
+  if (taken.size() < 2) {
+    throw InputError(src, 0, "gives the pose of " + std::to_string(taken.size()) +
+                                 " image of the tracks; two or more are needed to triangulate from known poses");
+  }
+  place_control_points();
+}
+
+// Control points are in the world frame of the registered poses: place their tracks there.
+void Pipeline::place_control_points() {
+  for (SceneTrack& t : scene_.tracks) {
+    if (!t.control_mm) continue;
+    t.at_control = true;
+    t.xyz_mm = *t.control_mm;
+    if (t.state == TrackState::Rejected && t.issue == TrackIssue::SeenOnce) t.state = TrackState::Pending;
+  }
+}
+
 bool Pipeline::register_from_control() {
   std::size_t registered = 0;
   for (std::size_t i = 0; i < scene_.images.size(); ++i) {
@@ -135,12 +201,7 @@ bool Pipeline::register_from_control() {
     ++registered;
   }
   if (registered >= 2) {
-    for (SceneTrack& t : scene_.tracks) {
-      if (!t.control_mm) continue;
-      t.at_control = true;
-      t.xyz_mm = *t.control_mm;
-      if (t.state == TrackState::Rejected && t.issue == TrackIssue::SeenOnce) t.state = TrackState::Pending;
-    }
+    place_control_points();
     return true;
   }
   for (std::size_t i = 0; i < scene_.images.size(); ++i) {
@@ -306,7 +367,15 @@ void Pipeline::grow() {
         best_count = count;
       }
     }
-    if (best == scene_.images.size() || best_count < o_.pnp_min_inliers) break;
+    if (best == scene_.images.size() || best_count < o_.pnp_min_inliers) {
+      // No image for PnP: one linked to the model by its matches but seeing too few of its points.
+      if (!register_by_relative_pose(failed)) break;
+      failed.clear();
+      triangulate_tracks(scene_, o_.triangulation, o_.threads);
+      intermediate_adjustment();
+      next_ba = static_cast<std::size_t>(std::ceil(static_cast<double>(scene_.registered_count()) * o_.global_ba_growth));
+      continue;
+    }
     std::vector<Correspondence> corr;
     for (std::size_t o : scene_.images[best].observations) {
       const ObservationRef& ob = scene_.observations[o];
@@ -330,6 +399,100 @@ void Pipeline::grow() {
     }
   }
   if (scene_.registered_count() != last_ba_registered_) intermediate_adjustment();
+}
+
+// Registration of an image u from its relative pose to a registered image r, for an image that
+// sees too few triangulated points for PnP but shares many tracks with r (a ring of photos whose
+// tracks mostly span two of them). The essential matrix of their shared tracks gives u's
+// rotation and the direction of its baseline from r (5 of the 6 unknowns, from many points):
+//   x_u ~ R_rel (R_r X + t_r) + s t_rel,   |t_rel| = 1,
+// and every triangulated point X that u sees gives the length s: with a = R_rel (R_r X + t_r),
+// b = t_rel and the bearing x = (x_u, 1), x x (a + s b) = 0 in least squares,
+//   s = -((x x a) . (x x b)) / |x x b|^2.
+// The median over the points is kept if relative_min_scale_points of them reproject within the
+// RANSAC threshold. Pairs are tried from the most shared tracks down.
+bool Pipeline::register_by_relative_pose(const std::set<std::size_t>& skip) {
+  if (o_.relative_min_scale_points == 0) return false;
+  const double focal = 0.5 * (scene_.camera.params[kFx] + scene_.camera.params[kFy]);
+  std::map<std::pair<std::size_t, std::size_t>, std::size_t> shared;  // (unregistered, registered)
+  for (const SceneTrack& t : scene_.tracks) {
+    if (t.state == TrackState::Rejected) continue;
+    std::vector<std::size_t> in, out;
+    for (std::size_t o : t.observations) {
+      const ObservationRef& ob = scene_.observations[o];
+      if (!ob.usable) continue;
+      (scene_.images[ob.image].registered ? in : out).push_back(ob.image);
+    }
+    for (std::size_t u : out) {
+      for (std::size_t r : in) ++shared[{u, r}];
+    }
+  }
+  std::vector<std::pair<std::size_t, std::pair<std::size_t, std::size_t>>> candidates;
+  for (const auto& [pair, n] : shared) {
+    if (n >= o_.min_shared_tracks && !skip.count(pair.first) && !relative_tried_.count(pair.first)) {
+      candidates.push_back({n, pair});
+    }
+  }
+  std::stable_sort(candidates.begin(), candidates.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  for (const auto& [n, pair] : candidates) {
+    const auto [u, r] = pair;
+    std::map<std::size_t, std::size_t> in_r;  // track -> observation in r
+    for (std::size_t o : scene_.images[r].observations) {
+      if (scene_.observations[o].usable) in_r[scene_.observations[o].track] = o;
+    }
+    std::vector<Eigen::Vector2d> xr, xu;
+    for (std::size_t o : scene_.images[u].observations) {
+      const ObservationRef& ob = scene_.observations[o];
+      const auto it = in_r.find(ob.track);
+      if (!ob.usable || it == in_r.end() || scene_.tracks[ob.track].state == TrackState::Rejected) continue;
+      xr.push_back(scene_.observations[it->second].xy);
+      xu.push_back(ob.xy);
+    }
+    if (rotation_only_median_residual(xr, xu) * focal < o_.ransac.threshold_px) continue;
+    const auto rel = estimate_relative_pose(xr, xu, focal, o_.ransac);
+    if (!rel || rel->inliers.size() < o_.min_shared_tracks) continue;
+    const Eigen::Matrix3d R_rel = rotation_of(rel->second_from_first);
+    const Eigen::Vector3d b = translation_of(rel->second_from_first);
+    const PoseBlock& pose_r = scene_.images[r].cam_from_world;
+    std::vector<double> scales;
+    std::vector<std::pair<Eigen::Vector3d, Eigen::Vector2d>> points;  // (X, uv_px) seen in u
+    for (std::size_t o : scene_.images[u].observations) {
+      const ObservationRef& ob = scene_.observations[o];
+      if (!ob.usable || !placed(scene_.tracks[ob.track])) continue;
+      const Eigen::Vector3d& X = scene_.tracks[ob.track].xyz_mm;
+      const Eigen::Vector3d a = R_rel * (rotation_of(pose_r) * X + translation_of(pose_r));
+      const Eigen::Vector3d x(ob.xy.x(), ob.xy.y(), 1);
+      const Eigen::Vector3d xb = x.cross(b);
+      if (!(xb.squaredNorm() > 1e-12)) continue;
+      scales.push_back(-x.cross(a).dot(xb) / xb.squaredNorm());
+      points.push_back({X, ob.uv_px});
+    }
+    if (scales.size() < o_.relative_min_scale_points) continue;
+    std::vector<double> sorted = scales;
+    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2), sorted.end());
+    const double s = sorted[sorted.size() / 2];
+    if (!(s > 0)) continue;
+    const Eigen::Matrix3d R_u = R_rel * rotation_of(pose_r);
+    const PoseBlock pose_u = make_pose(R_u, R_rel * translation_of(pose_r) + s * b);
+    std::size_t agree = 0;
+    for (const auto& [X, uv] : points) {
+      double proj[2];
+      if (project(shape_of(scene_.camera), scene_.camera.params.data(), pose_u.data(), X.data(), proj) &&
+          (Eigen::Vector2d(proj[0], proj[1]) - uv).norm() <= o_.ransac.threshold_px) {
+        ++agree;
+      }
+    }
+    if (agree < o_.relative_min_scale_points) continue;
+    scene_.images[u].registered = true;
+    scene_.images[u].cam_from_world = pose_u;
+    registered_by_[u] = "relative_pose";
+    relative_tried_.insert(u);  // should the adjustment drop it again, it is not tried twice
+    log::debug(scene_.images[u].name + ": registered from its relative pose to " + scene_.images[r].name + " (" +
+               std::to_string(rel->inliers.size()) + " of " + std::to_string(xr.size()) + " shared tracks), baseline " +
+               "length from " + std::to_string(agree) + " of " + std::to_string(points.size()) + " points");
+    return true;
+  }
+  return false;
 }
 
 BundleSummary Pipeline::adjust(const BundleSetup& setup) {
@@ -401,12 +564,7 @@ bool Pipeline::align_to_control() {
   for (std::size_t t : ids) sum += (scene_.tracks[t].xyz_mm - *scene_.tracks[t].control_mm).squaredNorm();
   log::debug("aligned to " + std::to_string(ids.size()) + " control points, RMS " +
              fmt(std::sqrt(sum / static_cast<double>(ids.size()))) + " mm");
-  for (SceneTrack& t : scene_.tracks) {
-    if (!t.control_mm) continue;
-    t.at_control = true;
-    t.xyz_mm = *t.control_mm;
-    if (t.state == TrackState::Rejected && t.issue == TrackIssue::SeenOnce) t.state = TrackState::Pending;
-  }
+  place_control_points();
   setup_.fixed_image.reset();
   setup_.fixed_translation.reset();
   return true;
@@ -481,7 +639,11 @@ void Pipeline::choose_datum() {
     if (!placed(scene_.tracks[b.track_a]) || !placed(scene_.tracks[b.track_b])) continue;
     (report_.scale_bars[bar_report_[k]].origin == "file" ? from_file : from_marker) = true;
   }
-  if (control) {
+  if (!setup_.known_poses.empty()) {
+    // The poses give the frame and the scale; control points and scale bars add to them.
+    report_.datum = control ? "known_poses+control_points" : "known_poses";
+    report_.reference_image.reset();
+  } else if (control) {
     report_.datum = "control_points";
     report_.reference_image.reset();
   } else if (from_file || from_marker) {
@@ -741,18 +903,24 @@ Reconstruction Pipeline::run() {
     last = now;
   };
   const CameraModel camera = to_camera_model(input_.camera, input_.camera_source);
-  if (input_.control_points.empty() && input_.scale_bars.empty() && !o_.scale.marker_side_mm &&
-      !o_.scale.allow_arbitrary_scale) {
-    throw UsageError("no datum: give control points (--control-points), scale bars (--scale-bars) or the marker side "
-                     "(--marker-side-mm), or accept an arbitrary scale with --arbitrary-scale");
+  if (input_.known_poses.empty() && input_.control_points.empty() && input_.scale_bars.empty() &&
+      !o_.scale.marker_side_mm && !o_.scale.allow_arbitrary_scale) {
+    throw UsageError("no datum: give control points (--control-points), scale bars (--scale-bars), the marker side "
+                     "(--marker-side-mm) or known poses (--known-poses), or accept an arbitrary scale with "
+                     "--arbitrary-scale");
   }
   scene_ = build_scene(input_.tracks, camera, input_.control_points, o_.coded_id_limit, o_.weight_by_feature_size);
   registered_by_.assign(scene_.images.size(), "");
   check_input();
 
   lap("indexing and undistorting the observations");
-  const bool control_start = register_from_control();
-  if (control_start) {
+  if (!input_.known_poses.empty()) {
+    register_from_known();
+    report_.pose_initialisation = "known_poses";
+    log::debug(std::to_string(scene_.registered_count()) + " images registered from known poses");
+    triangulate_tracks(scene_, o_.triangulation, o_.threads);
+    grow();
+  } else if (register_from_control()) {
     report_.pose_initialisation = "control_pnp";
     log::debug(std::to_string(scene_.registered_count()) + " images registered from control points");
     triangulate_tracks(scene_, o_.triangulation, o_.threads);

@@ -1,7 +1,8 @@
 // triangulate's one library call: from tracks, the camera and the datum (control points, scale
 // bars, a marker side) to camera poses, 3D points with their uncertainty, and a report.
-//   1. poses: PnP from control points in every image that sees enough of them; otherwise
-//      incremental: the best image pair from the essential matrix, further images by PnP;
+//   1. poses: the known poses if given; else PnP from control points in every image that sees
+//      enough of them; otherwise incremental: the best image pair from the essential matrix;
+//      then further images by PnP;
 //   2. multi-view triangulation of every track (triangulation.hpp);
 //   3. bundle adjustment with the datum inside it, outlier removal and re-solving (bundle.hpp);
 //   4. point uncertainty from the adjustment (covariance.hpp).
@@ -79,6 +80,11 @@ struct ReconstructOptions {
   std::size_t control_min_points = 4;
   // PnP against triangulated points needs this many inliers.
   std::size_t pnp_min_inliers = 8;
+  // An image that no PnP can place is registered from its relative pose to a registered image
+  // (essential matrix from their shared tracks, min_shared_tracks or more inliers) when this many
+  // triangulated points it sees fix the one unknown left, the baseline's length, within the
+  // RANSAC threshold (0: never).
+  std::size_t relative_min_scale_points = 3;
   // Incremental start: candidate pairs share this many tracks or more; the best
   // initial_pair_candidates of them (by shared tracks) are tried; the chosen pair's median
   // intersection angle must reach initial_min_angle_deg.
@@ -91,6 +97,10 @@ struct ReconstructOptions {
   // While images are being added, adjust everything each time the number of registered images
   // has grown by this factor.
   double global_ba_growth = 1.25;
+  // Known poses (ReconstructInput::known_poses): standard deviations of a camera centre (mm, per
+  // axis) and of its rotation (degrees, per axis); nullopt: the poses are held fixed.
+  std::optional<double> pose_sigma_mm;
+  std::optional<double> pose_sigma_deg;
   int threads = 0;  // 0: all hardware threads
 };
 
@@ -101,6 +111,13 @@ struct ReconstructInput {
   std::string camera_source = "<camera>";
   std::vector<ControlPoint> control_points;
   std::vector<ScaleBar> scale_bars;
+  // Poses the user knows (a turntable, a robot, another tool's orientation), in the world frame
+  // and mm; they replace the pose search for their images and are the datum. Each image name is
+  // one of the tracks' (or, failing that, the only one with that file name); the line of each
+  // pose in its file, for errors (0: unknown).
+  std::vector<Pose> known_poses;
+  std::vector<std::size_t> known_pose_lines;
+  std::string known_poses_source = "<poses>";
 };
 
 struct Reconstruction {

@@ -402,5 +402,26 @@ const std::vector<DegenerateCase> kDegenerate = {
 
 INSTANTIATE_TEST_SUITE_P(Triangulate, Degenerate, ::testing::ValuesIn(kDegenerate));
 
+// An image that PnP cannot place (here: no PnP at all) is registered from its relative pose to
+// an image of the model, the baseline's length from the points it sees; a ring of photos whose
+// tracks mostly span two of them chains so (issue #23: the Middlebury temple).
+TEST(Reconstruct, ImagesPnpCannotPlaceAreRegisteredFromTheirRelativePose) {
+  const SceneTruth truth = test::make_scene(SceneOptions{});
+  ReconstructInput in = input_of(truth);
+  in.scale_bars = bars_of(truth, 0.002);
+  ReconstructOptions o;
+  o.pnp_min_inliers = 1000000;
+  const Reconstruction r = reconstruct(in, o);
+  std::size_t relative = 0;
+  for (const ImageReport& ir : r.report.per_image) relative += ir.registered_by == "relative_pose" ? 1 : 0;
+  EXPECT_EQ(r.report.registered_images, truth.poses.size());
+  EXPECT_EQ(relative, truth.poses.size() - 2);
+  const test::Accuracy a = test::evaluate(r, truth, true);
+  EXPECT_LT(a.centre_rms_mm, 0.04);
+  EXPECT_LT(a.part_rms_mm, 0.02);
+  o.relative_min_scale_points = 0;
+  EXPECT_EQ(reconstruct(in, o).report.registered_images, 2u);
+}
+
 }  // namespace
 }  // namespace photomill::triangulate

@@ -30,6 +30,15 @@ void write_report_json(std::ostream& out, const Report& r) {
   } else {
     j.null();
   }
+  j.field("known_poses", r.known_poses);
+  for (const auto& [key, v] : {std::pair{"pose_sigma_mm", r.pose_sigma_mm}, std::pair{"pose_sigma_deg", r.pose_sigma_deg}}) {
+    j.key(key);
+    if (v) {
+      j.value(*v);
+    } else {
+      j.null();
+    }
+  }
   j.end_object();
   j.field("pose_initialisation", r.pose_initialisation);
   j.field("images", r.images);

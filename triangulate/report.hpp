@@ -16,7 +16,7 @@ namespace photomill::triangulate {
 struct ImageReport {
   std::string image;
   bool registered = false;
-  std::string registered_by;        // "control_pnp", "initial_pair", "pnp"; empty if not registered
+  std::string registered_by;        // "known_pose", "control_pnp", "initial_pair", "pnp", "relative_pose"; empty if not registered
   std::size_t observations = 0;     // inlier observations in the final adjustment
   double rms_px = 0;                // RMS reprojection error over them
 };
@@ -53,10 +53,13 @@ struct ClassReport {
 };
 
 struct Report {
-  // Datum: "control_points", "scale_bars", "marker_side", "scale_bars+marker_side",
-  // "arbitrary_scale".
+  // Datum: "known_poses", "known_poses+control_points", "control_points", "scale_bars",
+  // "marker_side", "scale_bars+marker_side", "arbitrary_scale".
   std::string datum;
-  std::string pose_initialisation;  // "control_pnp", "incremental", "incremental+control_alignment"
+  // Known poses given (--known-poses): how many, and their prior sigmas (nullopt: held fixed).
+  std::size_t known_poses = 0;
+  std::optional<double> pose_sigma_mm, pose_sigma_deg;
+  std::string pose_initialisation;  // "known_poses", "control_pnp", "incremental", "incremental+control_alignment"
   std::optional<std::string> reference_image;  // pose held fixed (datum without control points)
   std::size_t images = 0;
   std::size_t registered_images = 0;

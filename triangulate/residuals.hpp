@@ -86,6 +86,49 @@ struct ControlPointPrior {
   double inv_sigma;
 };
 
+// Prior on a camera pose known to sigma_rad in rotation and sigma_mm in position (a turntable,
+// a robot, another tool's orientation), with known pose (R0, C0) and C = -R^T t:
+//   r[0..2] = aa(R R0^T) / sigma_rad,   r[3..5] = (C - C0) / sigma_mm              (6 values)
+// aa() the angle-axis vector of the rotation (its norm is the angle between R and R0, so the
+// prior is isotropic in rotation); the position prior is on the centre, not on t, so that the
+// two sigmas mean what a user measures (degrees of the camera's attitude, mm of its position).
+// Parameters: pose[0..5] as in ReprojectionError.
+struct PosePrior {
+  PosePrior(const PoseBlock& known, double sigma_mm, double sigma_rad)
+      : inv_sigma_mm(1.0 / sigma_mm), inv_sigma_rad(1.0 / sigma_rad) {
+    ceres::AngleAxisToQuaternion(known.data(), q0.data());
+    const Eigen::Vector3d c = centre_of(known);
+    for (int i = 0; i < 3; ++i) c0[static_cast<std::size_t>(i)] = c[i];
+  }
+
+  template <typename T>
+  bool operator()(const T* pose, T* r) const {
+    T q[4], q0_inverse[4], dq[4], aa[3];
+    ceres::AngleAxisToQuaternion(pose, q);
+    q0_inverse[0] = T(q0[0]);
+    for (int i = 1; i < 4; ++i) q0_inverse[i] = T(-q0[static_cast<std::size_t>(i)]);
+    ceres::QuaternionProduct(q, q0_inverse, dq);
+    ceres::QuaternionToAngleAxis(dq, aa);
+    // C = -R^T t: rotate t by the inverse rotation (-aa).
+    const T inverse[3] = {-pose[0], -pose[1], -pose[2]};
+    T rt[3];
+    ceres::AngleAxisRotatePoint(inverse, pose + 3, rt);
+    for (int i = 0; i < 3; ++i) {
+      r[i] = aa[i] * inv_sigma_rad;
+      r[3 + i] = (-rt[i] - c0[static_cast<std::size_t>(i)]) * inv_sigma_mm;
+    }
+    return true;
+  }
+
+  static ceres::CostFunction* create(const PoseBlock& known, double sigma_mm, double sigma_rad) {
+    return new ceres::AutoDiffCostFunction<PosePrior, 6, 6>(new PosePrior(known, sigma_mm, sigma_rad));
+  }
+
+  std::array<double, 4> q0{};
+  std::array<double, 3> c0{};
+  double inv_sigma_mm, inv_sigma_rad;
+};
+
 // Scale bar: a known distance d (standard deviation sigma) between two points A and B:
 //   r = (|A - B| - d) / sigma_mm                                              (1 value)
 // Parameters: a[0..2] = A, b[0..2] = B (mm, world). This is the datum of a reconstruction

@@ -13,6 +13,7 @@
 #include "formats/point_cloud.hpp"
 #include "formats/surface.hpp"
 #include "formats/tables.hpp"
+#include "triangulate/cli.hpp"
 
 namespace photomill::fuzz {
 namespace {
@@ -64,6 +65,12 @@ void features(const std::string& d) {
 }
 void step(const std::string& d) { from_file<read_step>(d, ".step"); }
 void iges(const std::string& d) { from_file<read_iges>(d, ".igs"); }
+// triangulate --known-poses: a poses CSV or COLMAP's images.txt.
+void known_poses(const std::string& d) {
+  std::istringstream in(d);
+  std::vector<std::size_t> lines;
+  triangulate::read_known_poses(in, "fuzz", &lines);
+}
 
 }  // namespace
 
@@ -73,6 +80,7 @@ const std::vector<Target>& targets() {
       {"poses", poses},               {"scale_bars", scale_bars},         {"point_cloud", point_cloud},
       {"surface", surface},           {"cl_data", cl_data},               {"camera_yaml", camera_yaml},
       {"features", features},         {"step", step},                     {"iges", iges},
+      {"known_poses", known_poses},
   };
   return all;
 }
