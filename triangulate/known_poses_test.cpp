@@ -91,7 +91,9 @@ TEST(KnownPoses, HeldFixedStayAsGivenAndPlaceThePoints) {
   EXPECT_EQ(a.part_points, truth.part_points.size());
   EXPECT_LT(a.part_rms_mm, 0.01);
   for (std::size_t t = 0; t < r.scene.tracks.size(); ++t) {
-    if (r.in_result[t]) EXPECT_TRUE(std::isfinite(r.sigma_mm[t]) && r.sigma_mm[t] > 0) << r.scene.tracks[t].id;
+    if (r.in_result[t]) {
+      EXPECT_TRUE(std::isfinite(r.sigma_mm[t]) && r.sigma_mm[t] > 0) << r.scene.tracks[t].id;
+    }
   }
 }
 
@@ -135,7 +137,9 @@ TEST(KnownPoses, PriorsAloneAreTheDatum) {
   EXPECT_LT(centre_rms_mm(registered_poses(r), truth.poses), 0.2);
   EXPECT_EQ(r.report.sigma_method, "full_covariance");
   for (std::size_t t = 0; t < r.scene.tracks.size(); ++t) {
-    if (r.in_result[t]) EXPECT_TRUE(std::isfinite(r.sigma_mm[t]) && r.sigma_mm[t] > 0) << r.scene.tracks[t].id;
+    if (r.in_result[t]) {
+      EXPECT_TRUE(std::isfinite(r.sigma_mm[t]) && r.sigma_mm[t] > 0) << r.scene.tracks[t].id;
+    }
   }
 }
 
