@@ -49,6 +49,8 @@ private:
   void start_incremental();
   void grow();
   bool register_by_relative_pose(const std::set<std::size_t>& skip);
+  void shared_points(std::size_t a, std::size_t b, std::vector<Eigen::Vector2d>& xa,
+                     std::vector<Eigen::Vector2d>& xb) const;
   void intermediate_adjustment();
   bool align_to_control();
   void build_scale_constraints();
@@ -211,6 +213,23 @@ bool Pipeline::register_from_control() {
   return false;
 }
 
+// The undistorted observations in images a and b of every track both see usably (and that is not
+// rejected), in b's order: the correspondences of a relative pose.
+void Pipeline::shared_points(std::size_t a, std::size_t b, std::vector<Eigen::Vector2d>& xa,
+                             std::vector<Eigen::Vector2d>& xb) const {
+  std::map<std::size_t, std::size_t> in_a;  // track -> its observation in a
+  for (std::size_t o : scene_.images[a].observations) {
+    if (scene_.observations[o].usable) in_a[scene_.observations[o].track] = o;
+  }
+  for (std::size_t o : scene_.images[b].observations) {
+    const ObservationRef& ob = scene_.observations[o];
+    const auto it = in_a.find(ob.track);
+    if (!ob.usable || it == in_a.end() || scene_.tracks[ob.track].state == TrackState::Rejected) continue;
+    xa.push_back(scene_.observations[it->second].xy);
+    xb.push_back(ob.xy);
+  }
+}
+
 void Pipeline::start_incremental() {
   // Shared usable tracks per image pair.
   std::map<std::pair<std::size_t, std::size_t>, std::size_t> shared;
@@ -253,18 +272,8 @@ void Pipeline::start_incremental() {
     for (std::size_t c = begin; c < end; ++c) {
       const auto [a, b] = candidates[c].second;
       PairResult& res = results[c];
-      std::map<std::size_t, std::size_t> in_a;
-      for (std::size_t o : scene_.images[a].observations) {
-        if (scene_.observations[o].usable) in_a[scene_.observations[o].track] = o;
-      }
       std::vector<Eigen::Vector2d> xa, xb;
-      for (std::size_t o : scene_.images[b].observations) {
-        const ObservationRef& ob = scene_.observations[o];
-        const auto it = in_a.find(ob.track);
-        if (!ob.usable || it == in_a.end() || scene_.tracks[ob.track].state == TrackState::Rejected) continue;
-        xa.push_back(scene_.observations[it->second].xy);
-        xb.push_back(ob.xy);
-      }
+      shared_points(a, b, xa, xb);
       if (rotation_only_median_residual(xa, xb) * focal < o_.ransac.threshold_px) {
         res.no_baseline = true;
         continue;
@@ -436,18 +445,8 @@ bool Pipeline::register_by_relative_pose(const std::set<std::size_t>& skip) {
   std::stable_sort(candidates.begin(), candidates.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
   for (const auto& [n, pair] : candidates) {
     const auto [u, r] = pair;
-    std::map<std::size_t, std::size_t> in_r;  // track -> observation in r
-    for (std::size_t o : scene_.images[r].observations) {
-      if (scene_.observations[o].usable) in_r[scene_.observations[o].track] = o;
-    }
     std::vector<Eigen::Vector2d> xr, xu;
-    for (std::size_t o : scene_.images[u].observations) {
-      const ObservationRef& ob = scene_.observations[o];
-      const auto it = in_r.find(ob.track);
-      if (!ob.usable || it == in_r.end() || scene_.tracks[ob.track].state == TrackState::Rejected) continue;
-      xr.push_back(scene_.observations[it->second].xy);
-      xu.push_back(ob.xy);
-    }
+    shared_points(r, u, xr, xu);
     if (rotation_only_median_residual(xr, xu) * focal < o_.ransac.threshold_px) continue;
     const auto rel = estimate_relative_pose(xr, xu, focal, o_.ransac);
     if (!rel || rel->inliers.size() < o_.min_shared_tracks) continue;
