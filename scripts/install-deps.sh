@@ -10,6 +10,7 @@ packages=(
   libceres-dev
   libocct-foundation-dev libocct-modeling-data-dev libocct-modeling-algorithms-dev
   libocct-data-exchange-dev
+  poppler-utils  # tests only: pdftoppm renders the targets' PDF (targets/targets_test.cpp)
 )
 
 missing=()

@@ -29,7 +29,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const std::vector<std::string> kBinaries{"calib", "detect", "match", "triangulate", "fitsurf", "toolpath", "clpost"};
+const std::vector<std::string> kBinaries{"calib", "detect", "match", "triangulate", "fitsurf", "toolpath", "clpost", "targets"};
 
 // The classes of bad input of issue #11, item 4, in the words of the table's class column.
 const std::vector<std::string> kClasses{
