@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# Makefile.example run as the walkthrough writes it, from a job folder outside the repository
+# (dry runs, make -n): photo globs quoted or not give the same commands; a glob that matches no
+# file stops make with its name; BIN defaults to the build beside the Makefile.
+# Usage: makefile_test.sh SOURCE_DIR
+set -euo pipefail
+src=$1
+mk=$src/Makefile.example
+demo=$src/data/demo
+job=$(mktemp -d)
+trap 'rm -rf "$job"' EXIT
+cd "$job"
+fail() { echo "makefile_test: $*" >&2; exit 1; }
+
+quoted=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="$demo/part_*.jpg" CALIB_PHOTOS="$demo/board_*.jpg" OUT=job1)
+unquoted=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="$(echo "$demo"/part_*.jpg)" CALIB_PHOTOS="$(echo "$demo"/board_*.jpg)" OUT=job1)
+[ "$quoted" = "$unquoted" ] || fail "quoted and unquoted globs give different commands"
+n=$(grep -c "^/opt/pm/bin/detect --aruco .*part_[0-9]*\.jpg" <<<"$quoted" || true)
+[ "$n" -eq 12 ] || fail "expected one detect per demo photo (12), got $n"
+grep -q "board_09.jpg" <<<"$quoted" || fail "the calibration photos were not expanded"
+
+# Extra fitsurf options (the walkthrough's FITSURF+=...) keep the part box.
+fit=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="$demo/part_*.jpg" CALIB_PHOTOS="$demo/board_*.jpg" OUT=job1 \
+      PART_BOX=-85,-60,-5,85,60,100 FITSURF+="--robust huber" | grep "^/opt/pm/bin/fitsurf" | head -1)
+grep -q -- "--keep-box -85,-60,-5,85,60,100 --robust huber" <<<"$fit" || fail "FITSURF+= lost the part box: $fit"
+
+if out=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="nowhere/*.jpg" OUT=job1 2>&1); then
+  fail "a glob that matches nothing must stop make"
+fi
+grep -q "PHOTOS: 'nowhere/\*.jpg' matches no file" <<<"$out" || fail "unexpected message: $out"
+
+# BIN: the build beside the Makefile (a copy of it with a build/bin/detect of its own).
+mkdir -p repo/build/bin && cp "$mk" repo/ && touch repo/build/bin/detect
+cmds=$(make -n -f repo/Makefile.example PHOTOS="$demo/part_00.jpg" CALIB_PHOTOS="$demo/board_00.jpg" CONTROL="$demo/control_points.csv" OUT=job2)
+grep -q "^repo/build/bin/detect " <<<"$cmds" || fail "BIN is not the build beside the Makefile: $(head -3 <<<"$cmds")"
+echo "makefile_test: globs quoted or not, FITSURF+= keeps PART_BOX, an unmatched glob, BIN beside the Makefile: ok"
