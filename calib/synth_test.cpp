@@ -1,4 +1,4 @@
-// calib and detect's board modes on a small scene rendered by synth (tests/synth, docs/synth.md):
+// calib and detect's board modes on a small scene rendered by synth (tools/synth, docs/synth.md):
 // ChArUco board views with the true camera, and part views with the true 3D marker corners and
 // their true projections. The scene takes about 10 s to render, and ctest runs every TEST in its own
 // process, so one TEST renders it once and checks the three claims in turn.
@@ -20,7 +20,7 @@ namespace {
 class Scene {
 public:
   Scene() {
-    const auto r = test::run_tool("synth", {"-q", "-o", dir().string(), "--views", "3", "--calib-views", "12",
+    const auto r = test::run_tool(test::tools_path("synth"), {"-q", "-o", dir().string(), "--views", "3", "--calib-views", "12",
                                             "--width", "1000", "--height", "750", "--fx", "1200", "--board-squares-x",
                                             "10", "--board-squares-y", "8", "--board-square-mm", "25",
                                             "--board-marker-mm", "18"});

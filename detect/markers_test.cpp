@@ -22,8 +22,8 @@
 #include "formats/error.hpp"
 #include "formats/features.hpp"
 #include "tests/run_tool.hpp"
-#include "tests/synth/dataset.hpp"
-#include "tests/synth/test_scene.hpp"
+#include "tools/synth/dataset.hpp"
+#include "tools/synth/test_scene.hpp"
 
 namespace photomill::detect {
 namespace {

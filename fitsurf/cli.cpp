@@ -2,6 +2,7 @@
 #include "fitsurf/cli.hpp"
 
 #include <charconv>
+#include <filesystem>
 #include <memory>
 #include <set>
 
@@ -212,8 +213,12 @@ void write_outputs(const Cli& c, const Options& options, const PointCloud& cloud
     files.push_back(std::make_unique<tool::OutputFile>(path));
     return *files.back();
   };
-  if (!c.step.empty()) write_step(surface, file(c.step).temp_path());
-  if (!c.iges.empty()) write_iges(surface, file(c.iges).temp_path());
+  // The headers name the file the user asked for, not the temporary it is written to.
+  const auto header = [](const std::string& name) {
+    return CadHeader{name == "-" ? "" : std::filesystem::path(name).filename().string()};
+  };
+  if (!c.step.empty()) write_step(surface, file(c.step).temp_path(), header(c.step));
+  if (!c.iges.empty()) write_iges(surface, file(c.iges).temp_path(), header(c.iges));
   if (!c.mesh.empty()) {
     MeshOptions m;
     m.step_mm = c.mesh_step_mm;

@@ -318,14 +318,16 @@ PointCloud residual_cloud(const PointCloud& input, const Result& result) {
   out.points_mm.reserve(kept.size());
   for (std::size_t k : kept) out.points_mm.push_back(input.points_mm[k]);
   for (const auto& prop : input.properties) {
-    if (prop.name == "residual_mm" || prop.name == "weight") continue;  // replaced below
+    // replaced below (older files: without the prefix)
+    if (prop.name == "scalar_residual_mm" || prop.name == "scalar_weight" || prop.name == "residual_mm" || prop.name == "weight") continue;
     PointProperty p{prop.name, prop.type, {}};
     p.values.reserve(kept.size());
     for (std::size_t k : kept) p.values.push_back(prop.values[k]);
     out.properties.push_back(std::move(p));
   }
-  out.properties.push_back({"residual_mm", PlyScalar::Float64, result.fit.residual_mm});
-  out.properties.push_back({"weight", PlyScalar::Float64, result.fit.weight});
+  // "scalar_": the prefix CloudCompare needs to load a scalar field (docs/formats.md).
+  out.properties.push_back({"scalar_residual_mm", PlyScalar::Float64, result.fit.residual_mm});
+  out.properties.push_back({"scalar_weight", PlyScalar::Float64, result.fit.weight});
   return out;
 }
 

@@ -1,8 +1,8 @@
-// fitsurf against synth's own parts (tests/synth/height_field.hpp, the shapes synth renders and
+// fitsurf against synth's own parts (tools/synth/height_field.hpp, the shapes synth renders and
 // the demo chain reconstructs): h = w f, f the kind of shape, w the 20 mm blend down to the plate.
 // Issue #7's sparse Done-when on "synth's true surfaces" (the dense one: fit_test DenseAdaptive's
 // synth_* cases): ~150 marker points within 0.1 mm inside their hull where synth puts a part's
-// markers, over the interior inside the blend (synth::make_scene, tests/synth/scene.cpp). With
+// markers, over the interior inside the blend (synth::make_scene, tools/synth/scene.cpp). With
 // markers across the blend as well, 150 points cannot pin the blend down, and the kernel prefit's
 // leave-one-out error says so (docs/measurements/fitsurf.md, sparse markers).
 #include <cstdint>
@@ -15,7 +15,7 @@
 #include "fitsurf/synth_shapes.hpp"
 #include "fitsurf/test_shapes.hpp"
 #include "formats/log.hpp"
-#include "tests/synth/height_field.hpp"
+#include "tools/synth/height_field.hpp"
 
 namespace photomill::fitsurf {
 namespace {

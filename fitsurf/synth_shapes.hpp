@@ -1,4 +1,4 @@
-// synth's own parts (tests/synth/height_field.hpp) as fitsurf test shapes, for fitsurf's tests
+// synth's own parts (tools/synth/height_field.hpp) as fitsurf test shapes, for fitsurf's tests
 // and benchmark: h = w f over 150 x 100 mm, f synth's kind of shape, w the 20 mm blend down to the
 // plate, 30 mm high (synth's defaults; the demo part is its "bumps"). Links photomill_synth.
 #pragma once
@@ -11,7 +11,7 @@
 #include <Eigen/Core>
 
 #include "fitsurf/test_shapes.hpp"
-#include "tests/synth/height_field.hpp"
+#include "tools/synth/height_field.hpp"
 
 namespace photomill::fitsurf::test {
 

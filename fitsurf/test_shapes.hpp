@@ -1,6 +1,6 @@
 // Ground truth for fitsurf's tests and benchmark: analytic height fields z = f(x, y) over
 // 150 x 100 mm ([-75, 75] x [-50, 50]), mostly 20-40 mm high - sums of Gaussian bumps, a tanh
-// saddle, a wave, a dome (the kinds of tests/synth's shapes, without synth's blend down to the
+// saddle, a wave, a dome (the kinds of tools/synth's shapes, without synth's blend down to the
 // plate), a narrow bump (the most curved), a cylindrical ridge (the steepest) and the demo part
 // (synth's bumps written out, so that these tests need not link synth; synth's own parts:
 // synth_shapes.hpp) - plus samplers with Gaussian noise and the deviation of a fitted surface
@@ -59,7 +59,7 @@ inline std::vector<Shape> shapes() {
       // The demo part (data/demo: synth --shape bumps, 30 mm high, scene.txt's terms verbatim):
       // h = w f, f = base + four Gaussians (one a dip), w = S(dx/20) S(dy/20), S(t) = 6t^5 - 15t^4
       // + 10t^3 (1 beyond t = 1), dx, dy the distances to the nearest x and y edge
-      // (tests/synth/height_field.hpp): it meets the plate tangentially, with 50-70 degree flanks.
+      // (tools/synth/height_field.hpp): it meets the plate tangentially, with 50-70 degree flanks.
       {"demo",
        [](double x, double y) {
          const auto S = [](double t) { return t >= 1 ? 1.0 : t <= 0 ? 0.0 : t * t * t * (10 + t * (-15 + 6 * t)); };

@@ -17,8 +17,14 @@
 #include <string_view>
 #include <utility>
 
+#include <pwd.h>
 #include <sys/wait.h>
 #include <unistd.h>
+
+#include <APIHeaderSection_MakeHeader.hxx>
+#include <IGESData_GlobalSection.hxx>
+#include <Interface_HArray1OfHAsciiString.hxx>
+#include <Standard_Version.hxx>
 
 #include <BRepBuilderAPI_MakeEdge.hxx>
 #include <BRepBuilderAPI_MakeFace.hxx>
@@ -144,7 +150,6 @@ void prepare_occt() {
   Interface_Static::SetCVal("write.iges.brep.mode", "Faces");  // trimmed surface (144) per face
   Interface_Static::SetCVal("write.step.product.name", "photomill");
   Interface_Static::SetCVal("write.iges.header.product", "photomill");
-  Interface_Static::SetCVal("write.iges.header.author", "photomill");  // default: the user name
   // 1 (the default) lets the IGES reader remove knots of C0 B-splines, or split them into C1
   // pieces, to raise continuity: keep surfaces as written.
   Interface_Static::SetIVal("read.iges.bspline.continuity", 0);
@@ -629,7 +634,61 @@ std::vector<BSplineSurface> read_isolated(const std::string& path, const char* f
 
 }  // namespace
 
-void write_step(const BSplineSurface& surface, const std::string& path) {
+namespace {
+
+// The login name of the user running the program ('' when the system has none for the uid).
+std::string login_name() {
+  const passwd* pw = ::getpwuid(::getuid());
+  return pw != nullptr && pw->pw_name != nullptr ? pw->pw_name : "";
+}
+
+std::string header_file_name(const CadHeader& header, const std::string& path) {
+  return header.file_name.empty() ? std::filesystem::path(path).filename().string() : header.file_name;
+}
+
+Handle(TCollection_HAsciiString) hstring(const std::string& s) { return new TCollection_HAsciiString(s.c_str()); }
+
+const std::string& originating_system() {
+  static const std::string s = std::string("photomill ") + PHOTOMILL_VERSION;
+  return s;
+}
+
+// STEP's FILE_NAME and FILE_DESCRIPTION in place of Open CASCADE's defaults ('Author',
+// 'Open CASCADE', 'Open CASCADE Model'); the time stamp Open CASCADE set (now) is kept.
+void set_step_header(const Handle(StepData_StepModel)& model, const CadHeader& header, const std::string& path) {
+  APIHeaderSection_MakeHeader h(model);
+  h.SetName(hstring(header_file_name(header, path)));
+  Handle(Interface_HArray1OfHAsciiString) author = new Interface_HArray1OfHAsciiString(1, 1);
+  author->SetValue(1, hstring(login_name()));
+  h.SetAuthor(author);
+  Handle(Interface_HArray1OfHAsciiString) organization = new Interface_HArray1OfHAsciiString(1, 1);
+  organization->SetValue(1, hstring(""));
+  h.SetOrganization(organization);
+  h.SetOriginatingSystem(hstring(originating_system()));
+  h.SetPreprocessorVersion(hstring(std::string("Open CASCADE ") + OCC_VERSION_COMPLETE));
+  h.SetAuthorisation(hstring(""));
+  Handle(Interface_HArray1OfHAsciiString) description = new Interface_HArray1OfHAsciiString(1, 1);
+  description->SetValue(1, hstring(header.description));
+  h.SetDescription(description);
+  h.Apply(model);
+}
+
+// IGES's global section: the file name, the system, the author and an empty company.
+void set_iges_header(const Handle(IGESData_IGESModel)& model, const CadHeader& header, const std::string& path) {
+  IGESData_GlobalSection g = model->GlobalSection();
+  const std::string name = header_file_name(header, path);
+  g.SetSendName(hstring(std::filesystem::path(name).stem().string()));  // the product: the file's stem
+  g.SetFileName(hstring(name));
+  g.SetSystemId(hstring(originating_system()));
+  g.SetInterfaceVersion(hstring(std::string("Open CASCADE ") + OCC_VERSION_COMPLETE));
+  g.SetAuthorName(hstring(login_name()));
+  g.SetCompanyName(hstring(""));
+  model->SetGlobalSection(g);
+}
+
+}  // namespace
+
+void write_step(const BSplineSurface& surface, const std::string& path, const CadHeader& header) {
   check_writable(surface, path);
   guarded(path, "write STEP", [&] {
     const TopoDS_Face face = make_face(to_occt(surface), surface.boundary_uv, path);
@@ -637,6 +696,7 @@ void write_step(const BSplineSurface& surface, const std::string& path) {
     if (writer.Transfer(face, STEPControl_AsIs) != IFSelect_RetDone) {
       throw InputError(path, 0, "Open CASCADE could not translate the face to STEP");
     }
+    set_step_header(writer.Model(), header, path);
     // What STEPControl_Writer::Write does (StepSelect_WorkLibrary::WriteFile), with exact reals.
     StepData_StepWriter sw(writer.Model());
     use_exact_reals(sw.FloatWriter());
@@ -647,13 +707,14 @@ void write_step(const BSplineSurface& surface, const std::string& path) {
   });
 }
 
-void write_iges(const BSplineSurface& surface, const std::string& path) {
+void write_iges(const BSplineSurface& surface, const std::string& path, const CadHeader& header) {
   check_writable(surface, path);
   guarded(path, "write IGES", [&] {
     const TopoDS_Face face = make_face(to_occt(surface), surface.boundary_uv, path);
     IGESControl_Writer writer("MM", 0);
     if (!writer.AddShape(face)) throw InputError(path, 0, "Open CASCADE could not translate the face to IGES");
     writer.ComputeModel();
+    set_iges_header(writer.Model(), header, path);
     // What IGESControl_Writer::Write does, with exact reals.
     IGESData_IGESWriter iw(writer.Model());
     use_exact_reals(iw.FloatWriter());

@@ -10,13 +10,23 @@
 
 namespace photomill {
 
+// What a written file's header says of it: STEP's FILE_NAME and FILE_DESCRIPTION (ISO 10303-21,
+// 8.2), IGES's global section (file name, system, author, company). The author is the user's
+// login name, the originating system photomill and its version, the preprocessor Open CASCADE
+// and its version, the time stamp the time of writing; unknown fields (organisation,
+// authorisation) are empty, never placeholders.
+struct CadHeader {
+  std::string file_name;  // the name the file will have (empty: the path's own file name)
+  std::string description = "B-spline surface fitted by photomill, units mm";
+};
+
 // Writes `surface` as one face: trimmed by its boundary polygon (straight edges in (u,v)) when
 // boundary_uv is set, else bounded by its whole parameter domain. The file says millimetres.
 // Throws InputError(path, 0, ...) when the surface is invalid (validate_surface), when a
 // boundary vertex lies outside the domain or a value is beyond +-1e99, when Open CASCADE
 // rejects the geometry, or when the file cannot be written.
-void write_step(const BSplineSurface& surface, const std::string& path);
-void write_iges(const BSplineSurface& surface, const std::string& path);
+void write_step(const BSplineSurface& surface, const std::string& path, const CadHeader& header = {});
+void write_iges(const BSplineSurface& surface, const std::string& path, const CadHeader& header = {});
 
 // Reads every face of the file, in file order, as a B-spline surface in mm (the file's unit is
 // converted). Faces on other surfaces (planes, cylinders, Bezier, offsets...) are converted to

@@ -405,6 +405,36 @@ TEST(Cad, FilesSayMillimetres) {
   EXPECT_NE(iges_text.find("2HMM"), std::string::npos);  // global section: unit name
 }
 
+// The headers say what the file is and who wrote it, not Open CASCADE's placeholders (issue 27):
+// the name given (not the temporary written to), photomill as the originating system.
+TEST(Cad, HeadersNameTheFileAndTheSystem) {
+  TempDir dir;
+  write_step(bicubic(false), dir.file(".tmp123"), CadHeader{"part.step"});
+  write_iges(bicubic(false), dir.file(".tmp456"), CadHeader{"part.iges"});
+  std::ifstream step(dir.file(".tmp123"));
+  const std::string step_text((std::istreambuf_iterator<char>(step)), {});
+  const std::string system = std::string("photomill ") + PHOTOMILL_VERSION;
+  EXPECT_NE(step_text.find("FILE_NAME('part.step'"), std::string::npos) << step_text.substr(0, 600);
+  EXPECT_NE(step_text.find("'" + system + "'"), std::string::npos) << step_text.substr(0, 600);
+  EXPECT_NE(step_text.find("FILE_DESCRIPTION(('B-spline surface fitted by photomill, units mm')"), std::string::npos)
+      << step_text.substr(0, 600);
+  for (const char* placeholder : {"'Author'", "'Open CASCADE'", "Open CASCADE Model", "'Unknown'", ".tmp123"}) {
+    EXPECT_EQ(step_text.find(placeholder), std::string::npos) << placeholder << "\n" << step_text.substr(0, 600);
+  }
+  std::ifstream iges(dir.file(".tmp456"));
+  const std::string iges_text((std::istreambuf_iterator<char>(iges)), {});
+  const std::string global = iges_text.substr(0, iges_text.find("D      1"));
+  std::string flat;  // the global section's 72-column fields joined
+  for (std::size_t k = 0; k + 72 <= global.size(); k += 81) {
+    if (global[k + 72] == 'G') flat += global.substr(k, 72);
+  }
+  EXPECT_NE(flat.find("9Hpart.iges"), std::string::npos) << flat;
+  EXPECT_NE(flat.find(std::to_string(system.size()) + "H" + system), std::string::npos) << flat;
+  EXPECT_EQ(flat.find("Filename"), std::string::npos) << flat;
+  EXPECT_EQ(flat.find("Open CASCADE IGES processor"), std::string::npos) << flat;  // the sender's product id
+  EXPECT_EQ(read_step(dir.file(".tmp123")).size(), 1u);
+}
+
 // A file written in metres (by Open CASCADE itself) is read in millimetres.
 TEST(Cad, ReadsOtherUnitsAsMillimetres) {
   TempDir dir;

@@ -1,6 +1,7 @@
 #include "formats/cl_data.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -31,19 +32,36 @@ std::string upper(std::string_view s) {
 
 constexpr double kAxisNormTolerance = 1e-6;
 
+// A number in fixed notation (no exponent: many APT post-processors read none), the shortest
+// digits that read back to the same double (std::to_chars, chars_format::fixed). 512 characters
+// hold any double in fixed form (the largest has 309 digits, the smallest subnormal 327 places).
+void append_fixed(std::string& out, double value) {
+  char buf[512];
+  const auto [ptr, ec] = std::to_chars(buf, buf + sizeof buf, value, std::chars_format::fixed);
+  if (ec != std::errc()) throw std::invalid_argument("CL number that cannot be written");
+  out.append(buf, ptr);
+}
+
+std::string fixed(double value) {
+  std::string s;
+  append_fixed(s, value);
+  return s;
+}
+
 }  // namespace
 
-// APT CL text, one record per line: WORD or WORD/arg,arg,... ; '$$' starts a comment.
+// APT CL text, one record per line: WORD or WORD/arg,arg,... ; '$$' starts a comment. Numbers in
+// fixed notation; the tool as LOADTL/1 and CUTTER/d,r (APT's words, read by most posts).
 void write_cl_apt(std::ostream& out, const ClData& cl) {
   if (cl.part_name.find_first_of("\r\n") != std::string::npos) throw std::invalid_argument("part name with a line break");
   for (const auto& m : cl.moves) check_move(m);
   std::string t = "$$ photomill CL data v1: tool tip positions, mm\n";
   t += "PARTNO/" + cl.part_name + "\n";
   t += "UNITS/MM\n";
-  if (cl.tool_diameter_mm > 0) {  // unknown tool (e.g. from CSV): no TLDATA record
-    t += "TLDATA/MILL," + format_double(cl.tool_diameter_mm) + "," + format_double(cl.tool_corner_radius_mm) + "\n";
+  if (cl.tool_diameter_mm > 0) {  // unknown tool (e.g. from CSV): no tool records
+    t += "LOADTL/1\nCUTTER/" + fixed(cl.tool_diameter_mm) + "," + fixed(cl.tool_corner_radius_mm) + "\n";
   }
-  if (cl.spindle_rpm) t += "SPINDL/RPM," + format_double(*cl.spindle_rpm) + ",CLW\n";
+  if (cl.spindle_rpm) t += "SPINDL/RPM," + fixed(*cl.spindle_rpm) + ",CLW\n";
   if (cl.coolant) t += "COOLNT/ON\n";
   double feed = 0;
   for (const auto& m : cl.moves) {
@@ -51,18 +69,18 @@ void write_cl_apt(std::ostream& out, const ClData& cl) {
       t += "RAPID\n";
     } else if (m.feed_mm_per_min != feed) {
       feed = m.feed_mm_per_min;
-      t += "FEDRAT/MMPM," + format_double(feed) + "\n";
+      t += "FEDRAT/MMPM," + fixed(feed) + "\n";
     }
     t += "GOTO/";
-    append_double(t, m.tip_mm.x());
+    append_fixed(t, m.tip_mm.x());
     t += ',';
-    append_double(t, m.tip_mm.y());
+    append_fixed(t, m.tip_mm.y());
     t += ',';
-    append_double(t, m.tip_mm.z());
+    append_fixed(t, m.tip_mm.z());
     if (m.axis) {
       for (int c = 0; c < 3; ++c) {
         t += ',';
-        append_double(t, (*m.axis)[c]);
+        append_fixed(t, (*m.axis)[c]);
       }
     }
     t += '\n';

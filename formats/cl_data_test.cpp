@@ -2,6 +2,7 @@
 // malformed records named by line.
 #include "formats/cl_data.hpp"
 
+#include <regex>
 #include <sstream>
 
 #include <gtest/gtest.h>
@@ -36,6 +37,23 @@ TEST(ClApt, RoundTripsExactly) {
   std::stringstream s;
   write_cl_apt(s, cl);
   EXPECT_EQ(read_cl_apt(s, "p.cl"), cl) << s.str();
+}
+
+// Numbers in fixed notation (many posts read no exponent), still exact; the tool as LOADTL and
+// CUTTER (issue 27).
+TEST(ClApt, WritesFixedPointNumbersAndTheToolRecords) {
+  ClData cl = sample_cl(true);
+  cl.moves.push_back({ClMove::Kind::Feed, {-5.76e-05, 1e-300, -123456789.125}, std::nullopt, 1200});
+  std::stringstream s;
+  write_cl_apt(s, cl);
+  const std::string text = s.str();
+  EXPECT_FALSE(std::regex_search(text, std::regex("[0-9.][eE][-+]?[0-9]"))) << text;
+  EXPECT_NE(text.find("GOTO/-0.0000576,0.0000"), std::string::npos) << text;
+  EXPECT_NE(text.find(",-123456789.125\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("GOTO/-70,0.000000001,12.5,0,0,1\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("UNITS/MM\nLOADTL/1\nCUTTER/6,3\nSPINDL/RPM,12000,CLW\n"), std::string::npos) << text;
+  EXPECT_EQ(text.find("TLDATA"), std::string::npos) << text;
+  EXPECT_EQ(read_cl_apt(s, "p.cl"), cl);
 }
 
 TEST(ClCsv, RoundTripsTheMoves) {

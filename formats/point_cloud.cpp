@@ -20,6 +20,11 @@ const PointProperty* PointCloud::find(std::string_view name) const {
   for (const auto& p : properties) {
     if (p.name == name) return &p;
   }
+  for (const auto& p : properties) {
+    if (p.name.size() == name.size() + 7 && p.name.compare(0, 7, "scalar_") == 0 && p.name.compare(7, name.size(), name) == 0) {
+      return &p;
+    }
+  }
   return nullptr;
 }
 

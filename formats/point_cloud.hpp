@@ -31,6 +31,9 @@ struct PointCloud {
   std::vector<PointProperty> properties;      // in file order; each has points_mm.size() values
   PlyScalar xyz_type = PlyScalar::Float64;    // type of x, y, z written to PLY
 
+  // The property `name`, else "scalar_" + name (the form CloudCompare loads as a scalar field,
+  // which triangulate writes: find("sigma_mm") finds scalar_sigma_mm in new files and sigma_mm
+  // in older ones); nullptr when neither is there.
   const PointProperty* find(std::string_view name) const;
   // Adds a property filled with zeros (or returns the existing one of that name).
   PointProperty& add_property(const std::string& name, PlyScalar type);

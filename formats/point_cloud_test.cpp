@@ -33,6 +33,21 @@ PointCloud sample_cloud() {
 
 class PlyRoundTrip : public ::testing::TestWithParam<PlyEncoding> {};
 
+// Values are found under their name or with CloudCompare's "scalar_" prefix, the exact name first.
+TEST(PointCloudFind, TakesTheNameOrItsScalarPrefixedForm) {
+  PointCloud c;
+  c.points_mm = {{0, 0, 0}};
+  c.properties = {{"scalar_sigma_mm", PlyScalar::Float64, {1}}, {"views", PlyScalar::UInt8, {2}},
+                  {"scalar_views", PlyScalar::UInt8, {3}}};
+  ASSERT_NE(c.find("sigma_mm"), nullptr);
+  EXPECT_EQ(c.find("sigma_mm")->values[0], 1);
+  EXPECT_EQ(c.find("scalar_sigma_mm")->values[0], 1);
+  EXPECT_EQ(c.find("views")->values[0], 2);  // the exact name wins
+  EXPECT_EQ(c.find("sigma"), nullptr);
+  EXPECT_EQ(c.find("mm"), nullptr);
+  EXPECT_EQ(c.find("reproj_rms_px"), nullptr);
+}
+
 TEST_P(PlyRoundTrip, PreservesPointsAndEveryPropertyType) {
   const PointCloud c = sample_cloud();
   std::stringstream s;

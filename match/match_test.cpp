@@ -17,10 +17,10 @@
 #include "detect/sift.hpp"
 #include "formats/error.hpp"
 #include "match/match.hpp"
-#include "match/track_truth.hpp"
+#include "tools/track_truth.hpp"
 #include "tests/run_tool.hpp"
-#include "tests/synth/dataset.hpp"
-#include "tests/synth/test_scene.hpp"
+#include "tools/synth/dataset.hpp"
+#include "tools/synth/test_scene.hpp"
 
 namespace photomill::match {
 namespace {

@@ -31,6 +31,7 @@ build=$(cd "$build" && pwd)
 data=$(cd "$data" && pwd)
 [[ -z "$synth_dir" ]] || synth_dir=$(cd "$synth_dir" && pwd)
 bin="$build/bin"
+tools="$build/tools/bin"
 for tool in detect calib; do
   [[ -x "$bin/$tool" ]] || { echo "bench-calib.sh: $bin/$tool not built" >&2; exit 1; }
 done
@@ -101,10 +102,10 @@ echo
 
 if [[ $with_synth == 1 ]]; then
   if [[ -z "$synth_dir" ]]; then
-    [[ -x "$bin/synth" ]] || { echo "bench-calib.sh: $bin/synth not built (or pass --no-synth)" >&2; exit 1; }
+    [[ -x "$tools/synth" ]] || { echo "bench-calib.sh: $tools/synth not built (or pass --no-synth)" >&2; exit 1; }
     synth_dir="$work/synth"
     echo "rendering the default synth scene into $synth_dir ..."
-    "$bin/synth" -q -o "$synth_dir"
+    "$tools/synth" -q -o "$synth_dir"
   fi
   echo "## synth scene ($synth_dir)"
   echo

@@ -10,6 +10,7 @@ build=${1:-build}
 runs=${PHOTOMILL_BENCH_RUNS:-3}
 cmake --build "$build" --target detect match detect_marker_check match_track_check -j"$(nproc)" >/dev/null
 bin=$build/bin
+tools=$build/tools/bin
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 photos=(data/demo/part_*.jpg)
@@ -51,11 +52,11 @@ echo "load after: $(uptime | sed 's/.*load average/load average/')"
 echo
 echo "== marker corners against the true projections =="
 echo "-- edge fit (detect's default):"
-"$bin/detect_marker_check" "$work/obs.csv" --set data/demo
+"$tools/detect_marker_check" "$work/obs.csv" --set data/demo
 echo "-- OpenCV's CORNER_REFINE_SUBPIX on the same photos:"
-"$bin/detect_marker_check" "$work/obs_subpix.csv" --set data/demo
+"$tools/detect_marker_check" "$work/obs_subpix.csv" --set data/demo
 
 echo
 echo "== tracks against the true geometry =="
 "$bin/match" "$work/obs.csv" --features "$work/feat" --camera data/demo/camera.yaml -o /dev/null 2>&1 | sed 's/^/  /'
-"$bin/match_track_check" "$work/tracks.csv" --set data/demo
+"$tools/match_track_check" "$work/tracks.csv" --set data/demo

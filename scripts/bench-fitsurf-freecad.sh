@@ -32,7 +32,7 @@ cmake --build "$build" --target fitsurf fitsurf_bench -j2 >/dev/null
 
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-bench=$build/bin/fitsurf_bench
+bench=$build/tools/bin/fitsurf_bench
 "$bench" --write-cloud "$work/points.xyz" --points "$points" --shape bumps
 
 echo "== machine: $(nproc) cores; $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')"

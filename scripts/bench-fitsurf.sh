@@ -17,13 +17,13 @@ cmake --build "$build" --target fitsurf fitsurf_bench -j2 >/dev/null
 
 echo "== machine: $(nproc) cores; $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')"
 echo "== load before: $(uptime)"
-"$build/bin/fitsurf_bench" "$@"
+"$build/tools/bin/fitsurf_bench" "$@"
 
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-"$build/bin/fitsurf_bench" --write-cloud "$work/c100k.ply" --points 100000
-"$build/bin/fitsurf_bench" --write-cloud "$work/c100k.xyz" --points 100000
-"$build/bin/fitsurf_bench" --write-cloud "$work/c1m.ply" --points 1000000
+"$build/tools/bin/fitsurf_bench" --write-cloud "$work/c100k.ply" --points 100000
+"$build/tools/bin/fitsurf_bench" --write-cloud "$work/c100k.xyz" --points 100000
+"$build/tools/bin/fitsurf_bench" --write-cloud "$work/c1m.ply" --points 1000000
 echo
 echo "== fitsurf executable, end to end (wall s, user+sys s)"
 run() {

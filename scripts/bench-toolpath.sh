@@ -23,7 +23,7 @@ grep -m1 'model name' /proc/cpuinfo 2>/dev/null || true
 
 echo
 echo "== library: generate_toolpath (R 3, h 0.01, e 0.005, gouge tol 0.0005 mm; all cores)"
-"$build/bin/toolpath_bench" --runs 5 --write-surfaces "$work" bumps wave groove
+"$build/tools/bin/toolpath_bench" --runs 5 --write-surfaces "$work" bumps wave groove
 
 echo
 echo "== CLI: toolpath SURFACE > part.cl (wall and CPU of the whole process), then --verify"

@@ -19,13 +19,14 @@ for arg in "$@"; do
   esac
 done
 bin=$build/bin
+tools=$build/tools/bin
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
 cmake --build "$build" --target triangulate triangulate_bench -j2 >/dev/null
 synth_bench=""
 if cmake --build "$build" --target triangulate_synth_bench -j2 >/dev/null 2>&1; then
-  synth_bench=$bin/triangulate_synth_bench
+  synth_bench=$tools/triangulate_synth_bench
 fi
 
 now() { date +%s.%N; }
@@ -50,13 +51,13 @@ fi
 
 echo "== accuracy on triangulate's own scene (12 views, 96 part points, 0.05 px)"
 for datum in control control-sigma scale-bars marker-side; do
-  "$bin/triangulate_bench" --datum $datum | head -n 3
+  "$tools/triangulate_bench" --datum $datum | head -n 3
 done
 echo "-- with 2 % outliers of 8 px"
-"$bin/triangulate_bench" --datum control --outlier-fraction 0.02 | sed -n '1,2p;4p'
+"$tools/triangulate_bench" --datum control --outlier-fraction 0.02 | sed -n '1,2p;4p'
 
 echo "== command line, 12 views (tracks.csv -> cloud.ply, poses, report, COLMAP model)"
-"$bin/triangulate_bench" --write "$work/cli"
+"$tools/triangulate_bench" --write "$work/cli"
 start=$(now)
 "$bin/triangulate" "$work/cli/tracks.csv" -c "$work/cli/camera.yaml" --control-points "$work/cli/control_points.csv" \
   -o "$work/cli/cloud.ply" --poses "$work/cli/poses.csv" --report "$work/cli/report.json" --colmap "$work/cli/model" -q
@@ -69,7 +70,7 @@ echo "triangulate (scale bars, incremental): $(elapsed "$start" "$(now)") s wall
 if [ $quick -eq 0 ]; then
   echo "== full pipeline at scale: 200 views, 100000 points, tracks of 6 views"
   start=$(now)
-  "$bin/triangulate_bench" --views 200 --random-points 100000 --max-track-length 6 --datum control | head -n 3
+  "$tools/triangulate_bench" --views 200 --random-points 100000 --max-track-length 6 --datum control | head -n 3
   echo "wall $(elapsed "$start" "$(now)") s; $(uptime)"
 fi
 
@@ -85,7 +86,7 @@ for size in $sizes; do
   track=${rest#*:}
   dir=$work/ba_$views
   echo "-- $views views, $([ "$points" = 0 ] && echo "grid of 96 part points + plate" || echo "$points points, tracks of $track views")"
-  "$bin/triangulate_bench" --ba-compare "$dir" --views "$views" --random-points "$points" --max-track-length "$track" | grep "photomill BA"
+  "$tools/triangulate_bench" --ba-compare "$dir" --views "$views" --random-points "$points" --max-track-length "$track" | grep "photomill BA"
   if [ -z "$colmap" ]; then
     echo "   colmap not installed: comparison skipped"
     continue

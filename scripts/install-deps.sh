@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Installs photomill's build and test dependencies from Debian 12 packages.
+# Installs photomill's build dependencies from Debian 12 packages; with --tests also what only
+# the test suite runs (scripts/test.sh passes it; scripts/demo.sh does not).
 # Idempotent: packages already present are left alone. Runs apt-get as root, or through sudo.
 set -euo pipefail
 
@@ -10,8 +11,13 @@ packages=(
   libceres-dev
   libocct-foundation-dev libocct-modeling-data-dev libocct-modeling-algorithms-dev
   libocct-data-exchange-dev
-  poppler-utils  # tests only: pdftoppm renders the targets' PDF (targets/targets_test.cpp)
 )
+if [ "${1:-}" = "--tests" ]; then
+  packages+=(
+    poppler-utils  # pdftoppm renders the targets' PDF (targets/targets_test.cpp)
+    cloudcompare   # loads the walkthrough's cloud.ply (tests/walkthrough_test.sh)
+  )
+fi
 
 missing=()
 for p in "${packages[@]}"; do

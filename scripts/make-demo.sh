@@ -5,7 +5,7 @@
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 build=${1:-build}
-synth="$build/bin/synth"
+synth="$build/tools/bin/synth"
 if [ ! -x "$synth" ]; then
   echo "make-demo: $synth not found; build it first: cmake --build $build --target synth" >&2
   exit 1

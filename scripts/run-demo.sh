@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # Runs Makefile.example on the bundled demo data with the binaries in $1 (default build/bin), as
 # far as the stages are built, then says where each output is and how accurate it is against the
-# demo's truth. Stages not built yet are named, not faked.
+# demo's truth (synth_accuracy, a test tool: from $2, default the build's tools/ beside $1).
+# Stages not built yet are named, not faked.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bin=${1:-build/bin}
+tools=${2:-$(dirname "$bin")/tools/bin}
 out=${PHOTOMILL_DEMO_OUT:-out/demo}
 jobs=${PHOTOMILL_JOBS:-$(nproc)}
 # Other work on the machine slows the chains down; say how busy it was.
@@ -67,18 +69,18 @@ fi
 echo
 echo "Accuracy against the demo's truth (photos -> G-code, markers and features):"
 # Figures out of bounds are reported (FAIL), not hidden; the demo itself has still run.
-"$bin/synth_accuracy" -q --truth data/demo --outputs "$out" ||
+"$tools/synth_accuracy" -q --truth data/demo --outputs "$out" ||
   echo "photomill demo: some figures are out of bounds (FAIL above)"
 if [ -e "$markers_out/surface.txt" ]; then
   echo
   echo "Accuracy of the markers-only chain ($markers_out; a quick check, not meant to meet the bounds):"
-  "$bin/synth_accuracy" -q --truth data/demo --outputs "$markers_out" ||
+  "$tools/synth_accuracy" -q --truth data/demo --outputs "$markers_out" ||
     echo "photomill demo: some figures are out of bounds (FAIL above)"
 fi
 if [ -e "$out/scan/surface.txt" ]; then
   echo
   echo "Accuracy of the scanner-swap chain (true surface sample -> fitsurf -> toolpath):"
-  { "$bin/synth_accuracy" -q --truth data/demo --outputs "$out/scan" ||
+  { "$tools/synth_accuracy" -q --truth data/demo --outputs "$out/scan" ||
       echo "photomill demo: some figures are out of bounds (FAIL above)"; } | grep -v -E '^(calibration|marker)'
 fi
 

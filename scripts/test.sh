@@ -12,7 +12,7 @@ cd "$(dirname "$0")/.."
 mode=release
 if [ "${1:-}" = "--sanitize" ]; then mode=sanitize; fi
 
-bash scripts/install-deps.sh
+bash scripts/install-deps.sh --tests
 
 jobs=${PHOTOMILL_JOBS:-$(nproc)}
 werror=OFF

@@ -252,7 +252,7 @@ Rendered render_and_detect(const std::vector<std::string>& targets_args, int dpi
   Rendered out;
   const std::string tool = pdftoppm();
   if (tool.empty()) {
-    if (std::getenv("CI")) ADD_FAILURE() << "pdftoppm (poppler-utils) is not installed: scripts/install-deps.sh installs it";
+    if (std::getenv("CI")) ADD_FAILURE() << "pdftoppm (poppler-utils) is not installed: scripts/install-deps.sh --tests installs it";
     return out;
   }
   test::TempDir dir;

@@ -23,7 +23,9 @@ struct ToolResult {
   std::string err;
 };
 
+// A user tool of the build (bin/), and a test or benchmark tool of tools/ (synth, synth_accuracy, ...).
 inline std::string bin_path(const std::string& tool) { return std::string(PHOTOMILL_BIN_DIR) + "/" + tool; }
+inline std::string tools_path(const std::string& tool) { return std::string(PHOTOMILL_TOOLS_DIR) + "/" + tool; }
 
 inline std::string read_file(const std::filesystem::path& p) {
   std::ifstream f(p, std::ios::binary);

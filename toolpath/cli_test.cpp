@@ -206,6 +206,14 @@ TEST(ToolpathCli, PipelineThroughClpostReadsBackInAnIndependentReader) {
   const ToolResult check = run_tool(
       "/usr/bin/env", {"python3", std::string(PHOTOMILL_SOURCE_DIR) + "/toolpath/gcode_check.py", ngc.string(), csv.string()});
   EXPECT_EQ(check.exit_code, 0) << check.out << check.err;
+  // The APT file itself, read by an independent APT reader: fixed-point numbers only, LOADTL and
+  // CUTTER before the first motion, the spindle on before the first feed, the CSV's moves exactly.
+  const fs::path cl = dir.path() / "part.cl";
+  std::ofstream(cl, std::ios::binary) << apt.out;
+  const ToolResult apt_check = run_tool(
+      "/usr/bin/env", {"python3", std::string(PHOTOMILL_SOURCE_DIR) + "/toolpath/apt_check.py", cl.string(), csv.string()});
+  EXPECT_EQ(apt_check.exit_code, 0) << apt_check.out << apt_check.err;
+  EXPECT_NE(apt.out.find("LOADTL/1\nCUTTER/"), std::string::npos) << apt.out.substr(0, 300);
   // clpost also reads the CSV form.
   const ToolResult from_csv = run_tool("clpost", {csv.string()});
   EXPECT_EQ(from_csv.exit_code, 0) << from_csv.err;

@@ -980,12 +980,14 @@ PointCloud make_point_cloud(const Reconstruction& r) {
     sigma.push_back(r.sigma_mm[t]);
     control.push_back(track.at_control ? 1 : 0);
   }
-  // Track ids beyond 32 bits are written as doubles (exact up to 2^53).
-  cloud.properties = {{"track_id", ids_fit_uint32 ? PlyScalar::UInt32 : PlyScalar::Float64, ids},
-                      {"views", PlyScalar::UInt32, views},
-                      {"reproj_rms_px", PlyScalar::Float32, rms},
-                      {"sigma_mm", PlyScalar::Float64, sigma},
-                      {"control", PlyScalar::UInt8, control}};
+  // Track ids beyond 32 bits are written as doubles (exact up to 2^53). The names carry the
+  // "scalar_" prefix that makes CloudCompare load them as scalar fields (it shows them without
+  // it); photomill's readers find them by either name (PointCloud::find).
+  cloud.properties = {{"scalar_track_id", ids_fit_uint32 ? PlyScalar::UInt32 : PlyScalar::Float64, ids},
+                      {"scalar_views", PlyScalar::UInt32, views},
+                      {"scalar_reproj_rms_px", PlyScalar::Float32, rms},
+                      {"scalar_sigma_mm", PlyScalar::Float64, sigma},
+                      {"scalar_control", PlyScalar::UInt8, control}};
   return cloud;
 }
 

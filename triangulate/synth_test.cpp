@@ -1,4 +1,4 @@
-// The accuracy targets on a small synth scene (tests/synth: its default 12 views of the
+// The accuracy targets on a small synth scene (tools/synth: its default 12 views of the
 // part on its plate, 2000 x 1500 px; the true marker-corner projections with noise added, plus
 // simulated natural features on the part until match exists):
 //   with the plate markers as control points: part-marker corners <= 0.01 mm RMS, camera centres
@@ -10,7 +10,7 @@
 
 #include <gtest/gtest.h>
 
-#include "triangulate/synth_truth.hpp"
+#include "tools/synth_truth.hpp"
 
 namespace photomill::triangulate {
 namespace {

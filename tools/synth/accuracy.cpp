@@ -1,0 +1,412 @@
+// synth_accuracy: runs photomill's pipeline on a synth scene and compares every stage with the
+// truth, one line per figure on stdout ("name: value unit (bound B) ok|FAIL" or
+// "name: not yet available (why)"). Exit 0 when every available figure is within its bound,
+// 1 when one is not or a built stage fails (any exit status but 0, 2 included), 2 for bad usage.
+// Stage command lines live in stages(): keep them the same as Makefile.example's.
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <iostream>
+#include <map>
+#include <optional>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "formats/bspline.hpp"
+#include "formats/camera.hpp"
+#include "formats/error.hpp"
+#include "formats/text.hpp"
+#include "formats/cl_data.hpp"
+#include "formats/log.hpp"
+#include "formats/point_cloud.hpp"
+#include "formats/surface.hpp"
+#include "formats/tables.hpp"
+#include "formats/tool.hpp"
+#include "tests/run_tool.hpp"
+#include "tools/synth/dataset.hpp"
+
+namespace fs = std::filesystem;
+using namespace photomill;
+
+namespace {
+
+// One pipeline stage: the executable and its arguments; "{set}" is the synth folder, "{work}"
+// the folder for the pipeline's outputs. Each stage reads earlier outputs and writes its own.
+struct Stage {
+  std::string tool;
+  std::vector<std::string> args;
+  std::vector<std::string> needs;  // earlier stages whose outputs it reads
+};
+
+const std::map<std::string, Stage>& stages() {
+  static const std::map<std::string, Stage> s = {
+      {"detect-board",
+       {"detect",
+        {"{set}/board_*.jpg", "--charuco", "7x5", "--square-mm", "30", "--marker-mm", "22", "--dict", "DICT_5X5_100", "-o",
+         "{work}/board_observations.csv"},
+        {}}},
+      {"calib",
+       {"calib", {"{work}/board_observations.csv", "--charuco", "7x5", "--square-mm", "30", "-o", "{work}/camera.yaml"},
+        {"detect-board"}}},
+      // Makefile.example's chain (FEATURES=1): markers and SIFT features per photo; the marker
+      // tracks give the poses; with them every pair is verified, and the features triangulated
+      // with self-calibration; the part and a plate margin fitted.
+      {"detect",
+       {"detect",
+        {"{set}/part_*.jpg", "--aruco", "DICT_4X4_100", "--features", "{work}/features", "--mask-markers",
+         "--mask-clearance-per-size", "1", "--sift-contrast-threshold", "0.01", "--max-features", "20000", "--cap-cell-px", "64", "-o",
+         "{work}/observations.csv"},
+        {}}},
+      {"match-markers",
+       {"match", {"{work}/observations.csv", "--camera", "{work}/camera.yaml", "-o", "{work}/marker_tracks.csv"},
+        {"detect", "calib"}}},
+      {"triangulate-markers",
+       {"triangulate",
+        {"{work}/marker_tracks.csv", "--camera", "{work}/camera.yaml", "--control-points", "{set}/control_points.csv",
+         "--poses", "{work}/marker_poses.csv", "-o", "{work}/marker_cloud.ply"},
+        {"match-markers"}}},
+      {"match",
+       {"match",
+        {"{work}/observations.csv", "--features", "{work}/features", "--camera", "{work}/camera.yaml", "--poses",
+         "{work}/marker_poses.csv", "--min-track-length", "2", "--flann-checks", "16", "--lsm-quadratic", "-o",
+         "{work}/tracks.csv"},
+        {"triangulate-markers"}}},
+      {"triangulate",
+       {"triangulate",
+        {"{work}/tracks.csv", "--camera", "{work}/camera.yaml", "--control-points", "{set}/control_points.csv",
+         "--refine-intrinsics", "all", "--outlier-rounds", "2", "--function-tolerance", "1e-6", "--poses", "{work}/poses.csv", "-o",
+         "{work}/cloud.ply"},
+        {"calib", "match"}}},
+      {"fitsurf",
+       {"fitsurf",
+        {"{work}/cloud.ply", "--keep-box", "-85,-60,-5,85,60,100", "--robust", "reject", "--net", "60x40", "--smoothing",
+         "1", "-o", "{work}/surface.txt"},
+        {"triangulate"}}},
+      {"toolpath", {"toolpath", {"{work}/surface.txt", "--tool-radius-mm", "3", "-o", "{work}/path.cl"}, {"fitsurf"}}},
+  };
+  return s;
+}
+
+// Bounds the small scene must meet once a stage is built.
+struct Bounds {
+  double focal_percent = 0.2, principal_point_px = 2.0;
+  double marker_rms_mm = 0.1, marker_max_mm = 0.3;
+  double surface_rms_mm = 0.1, surface_max_mm = 0.5;
+  double gouge_mm = 0.05, excess_mm = 0.5;
+};
+
+std::string expand(std::string s, const fs::path& set, const fs::path& work) {
+  for (auto [key, value] : {std::pair<std::string, std::string>{"{set}", set.string()}, {"{work}", work.string()}}) {
+    for (auto at = s.find(key); at != std::string::npos; at = s.find(key)) s.replace(at, key.size(), value);
+  }
+  return s;
+}
+
+// Glob "dir/prefix*.ext" without a shell.
+std::vector<std::string> expand_glob(const std::string& pattern) {
+  const auto star = pattern.find('*');
+  if (star == std::string::npos) return {pattern};
+  const fs::path p(pattern);
+  const std::string name = p.filename().string();
+  const auto s = name.find('*');
+  const std::string head = name.substr(0, s), tail = name.substr(s + 1);
+  std::vector<std::string> out;
+  for (const auto& e : fs::directory_iterator(p.parent_path())) {
+    const std::string f = e.path().filename().string();
+    if (f.size() >= head.size() + tail.size() && f.compare(0, head.size(), head) == 0 &&
+        f.compare(f.size() - tail.size(), tail.size(), tail) == 0) {
+      out.push_back(e.path().string());
+    }
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+struct Report {
+  bool failed = false;
+  // Figures known to be out of bounds (an open issue): printed FAIL (expected), not failing the
+  // run; one of them within its bound fails the run instead, so the list cannot go stale.
+  std::set<std::string> expected_failures;
+  std::set<std::string> seen;
+  void line(const std::string& name, double value, const std::string& unit, double bound) {
+    const bool ok = std::isfinite(value) && value <= bound;
+    const bool expected = expected_failures.count(name) > 0;
+    seen.insert(name);
+    failed = failed || (ok == expected);
+    std::cout << name << ": " << format_double(value) << " " << unit << " (bound " << format_double(bound) << ") "
+              << (ok ? (expected ? "ok, but expected to FAIL: drop --expect-fail" : "ok")
+                     : (expected ? "FAIL (expected)" : "FAIL"))
+              << "\n";
+  }
+  void missing(const std::string& name, const std::string& why) {
+    std::cout << name << ": not yet available (" << why << ")\n";
+  }
+};
+
+template <typename T, typename Reader>
+T read(const fs::path& path, Reader reader) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path.string(), 0, "missing output");
+  return reader(in, path.string());
+}
+
+// --- the figures -------------------------------------------------------------------------------
+void calibration_figures(Report& r, const Camera& truth, const Camera& got, const Bounds& b) {
+  const double focal = 100 * std::max(std::abs(got.fx() / truth.fx() - 1), std::abs(got.fy() / truth.fy() - 1));
+  r.line("calibration focal length error", focal, "%", b.focal_percent);
+  r.line("calibration principal point error", std::hypot(got.cx() - truth.cx(), got.cy() - truth.cy()), "px",
+         b.principal_point_px);
+}
+
+// Marker corners are the cloud's points whose track_id is a marker-corner point id.
+void marker_figures(Report& r, const std::map<PointId, Eigen::Vector3d>& truth, const PointCloud& got,
+                    const Bounds& b) {
+  double sum = 0, max = 0;
+  std::size_t n = 0;
+  const PointProperty* ids = got.find("track_id");
+  for (std::size_t k = 0; ids != nullptr && k < got.points_mm.size(); ++k) {
+    const auto it = truth.find(static_cast<PointId>(ids->values[k]));
+    if (it == truth.end()) continue;
+    const double e = (got.points_mm[k] - it->second).norm();
+    sum += e * e;
+    max = std::max(max, e);
+    ++n;
+  }
+  r.line("marker corner 3D error RMS", n ? std::sqrt(sum / n) : NAN, "mm", b.marker_rms_mm);
+  r.line("marker corner 3D error max", n ? max : NAN, "mm", b.marker_max_mm);
+}
+
+// Vertical deviation of the fitted surface from the true one, over the part inside the edge blend.
+void surface_figures(Report& r, const synth::HeightField& h, const BSplineSurface& s, const Bounds& b) {
+  const double u0 = s.knots_u[s.degree_u], u1 = s.knots_u[s.num_poles_u];
+  const double v0 = s.knots_v[s.degree_v], v1 = s.knots_v[s.num_poles_v];
+  double sum = 0, max = 0;
+  Eigen::Vector3d at_max = Eigen::Vector3d::Zero();
+  std::size_t n = 0;
+  for (int i = 0; i <= 100; ++i) {
+    for (int j = 0; j <= 100; ++j) {
+      const Eigen::Vector3d p = surface_point(s, u0 + (u1 - u0) * i / 100, v0 + (v1 - v0) * j / 100);
+      if (p.x() < h.x_min_mm + h.edge_blend_mm || p.x() > h.x_max_mm - h.edge_blend_mm ||
+          p.y() < h.y_min_mm + h.edge_blend_mm || p.y() > h.y_max_mm - h.edge_blend_mm) {
+        continue;
+      }
+      const double e = std::abs(p.z() - h.height_mm(p.x(), p.y()));
+      sum += e * e;
+      if (e > max) {
+        max = e;
+        at_max = p;
+      }
+      ++n;
+    }
+  }
+  if (n) log::debug("surface deviation max at (" + format_double(at_max.x()) + ", " + format_double(at_max.y()) + ")");
+  r.line("surface deviation RMS", n ? std::sqrt(sum / n) : NAN, "mm", b.surface_rms_mm);
+  r.line("surface deviation max", n ? max : NAN, "mm", b.surface_max_mm);
+}
+
+// Distance from c to the true surface z = h(x, y) (h = 0 on the plate around the part): the
+// nearest of a 0.1 mm grid of surface points over |x - c.x|, |y - c.y| <= reach. The grid can only
+// overestimate the distance: by about t^2 / (2 R), t the offset of the nearest grid point along
+// the surface (at most 0.07 mm times sqrt(1 + slope^2)), a few micrometres for R = 3 mm.
+double distance_to_truth(const synth::HeightField& h, const Eigen::Vector3d& c, double reach) {
+  double d = INFINITY;
+  for (double dx = -reach; dx <= reach; dx += 0.1) {
+    for (double dy = -reach; dy <= reach; dy += 0.1) {
+      const double x = c.x() + dx, y = c.y() + dy;
+      d = std::min(d, (c - Eigen::Vector3d(x, y, h.height_mm(x, y))).norm());
+    }
+  }
+  return d;
+}
+
+// For each feed move the ball centre is tip + R axis; its distance d to the true surface gives
+// gouge R - d > 0 and excess material d - R > 0. Every feed move over the plate counts, not only
+// those over the part: a path that cuts into the plate around the part gouges too (the fitted
+// surface's corners extrapolated below z = 0 did, by 0.85 mm, in the demo's scan chain).
+void toolpath_figures(Report& r, const synth::PartScene& scene, const ClData& cl, const Bounds& b) {
+  const synth::HeightField& h = scene.surface;
+  const double R = cl.tool_diameter_mm / 2;
+  double gouge = 0, excess = 0;
+  Eigen::Vector3d at_gouge = Eigen::Vector3d::Zero();
+  for (const ClMove& m : cl.moves) {
+    if (m.kind != ClMove::Kind::Feed || !(R > 0)) continue;
+    const Eigen::Vector3d c = m.tip_mm + R * m.axis.value_or(Eigen::Vector3d::UnitZ());
+    if (c.x() < scene.plate_x_min_mm || c.x() > scene.plate_x_max_mm || c.y() < scene.plate_y_min_mm ||
+        c.y() > scene.plate_y_max_mm) {
+      continue;
+    }
+    const double d = distance_to_truth(h, c, R + 1);
+    if (R - d > gouge) {
+      gouge = R - d;
+      at_gouge = m.tip_mm;
+    }
+    excess = std::max(excess, d - R);
+  }
+  if (gouge > 0) {
+    log::debug("tool path gouge max at tip (" + format_double(at_gouge.x()) + ", " + format_double(at_gouge.y()) + ", " +
+               format_double(at_gouge.z()) + ")");
+  }
+  r.line("tool path gouge max", gouge, "mm", b.gouge_mm);
+  r.line("tool path excess material max", excess, "mm", b.excess_mm);
+}
+
+// Every figure that the outputs in `out` allow, against the truth in `set`; a stage listed in
+// `unavailable` (or whose output file is missing) prints "not yet available".
+void evaluate(const fs::path& set, const fs::path& out, std::map<std::string, std::string> unavailable,
+              const Bounds& bounds, Report& report) {
+  const synth::PartScene scene = read<synth::PartScene>(set / "scene.txt", synth::read_scene);
+  auto why = [&](const std::string& stage, const fs::path& file) {
+    if (unavailable.count(stage)) return unavailable[stage];
+    return fs::exists(file) ? std::string() : "no " + file.string();
+  };
+  const auto camera = [](std::istream& in, const std::string& s) { return read_camera_yaml(in, s); };
+  if (const auto w = why("calib", out / "camera.yaml"); !w.empty()) {
+    report.missing("calibration focal length error", w);
+    report.missing("calibration principal point error", w);
+  } else {
+    calibration_figures(report, read<Camera>(set / "camera.yaml", camera), read<Camera>(out / "camera.yaml", camera), bounds);
+  }
+  if (const auto w = why("triangulate", out / "cloud.ply"); !w.empty()) {
+    report.missing("marker corner 3D error RMS", w);
+    report.missing("marker corner 3D error max", w);
+  } else {
+    std::map<PointId, Eigen::Vector3d> truth;
+    for (const bool part : {false, true}) {
+      for (const ControlPoint& p : synth::marker_corners(scene, part)) truth[p.point_id] = p.xyz_mm;
+    }
+    marker_figures(report, truth,
+                   read<PointCloud>(out / "cloud.ply", [](std::istream& in, const std::string& s) { return read_ply(in, s); }),
+                   bounds);
+  }
+  if (const auto w = why("fitsurf", out / "surface.txt"); !w.empty()) {
+    report.missing("surface deviation RMS", w);
+    report.missing("surface deviation max", w);
+  } else {
+    surface_figures(report, scene.surface, read<BSplineSurface>(out / "surface.txt", read_surface), bounds);
+  }
+  if (const auto w = why("toolpath", out / "path.cl"); !w.empty()) {
+    report.missing("tool path gouge max", w);
+    report.missing("tool path excess material max", w);
+  } else {
+    toolpath_figures(report, scene, read<ClData>(out / "path.cl", read_cl), bounds);
+  }
+}
+
+const std::vector<std::string>& stage_order() {
+  static const std::vector<std::string> order = {"detect-board",        "calib", "detect",      "match-markers",
+                                                 "triangulate-markers", "match", "triangulate", "fitsurf",
+                                                 "toolpath"};
+  return order;
+}
+
+// Runs the stages in order on the scene in `set`, writing into `out`, up to and including
+// `until` (empty: all); returns the stages that did not run and why.
+std::map<std::string, std::string> run_pipeline(const std::string& bin_dir, const fs::path& set, const fs::path& out,
+                                                const std::string& until, Report& report) {
+  std::map<std::string, std::string> unavailable;  // stage -> why
+  bool past_until = false;
+  for (const std::string& name : stage_order()) {
+    const Stage& st = stages().at(name);
+    if (past_until) unavailable[name] = "not run (--until " + until + ")";
+    past_until = past_until || name == until;
+    for (const auto& need : st.needs) {
+      if (unavailable.count(need)) unavailable[name] = unavailable[need];
+    }
+    if (unavailable.count(name)) continue;
+    std::vector<std::string> args;
+    for (const auto& a : st.args) {
+      for (const auto& e : expand_glob(expand(a, set, out))) args.push_back(e);
+    }
+    const fs::path exe = fs::path(bin_dir) / st.tool;
+    if (!fs::exists(exe)) {
+      unavailable[name] = exe.string() + " is not in this build";
+      continue;
+    }
+    const test::ToolResult res = test::run_tool(exe.string(), args);
+    if (res.exit_code == 0) continue;
+    if (res.err.find("not built yet") != std::string::npos) {
+      unavailable[name] = st.tool + " not built yet";
+    } else {
+      // Every stage is built now, so exit 2 (bad usage) means the command line here and the
+      // stage disagree: a failure, not a stage still to come.
+      if (res.exit_code == 2) {
+        std::cerr << "synth_accuracy: " << name << ": bad usage; update its command line in stages()\n";
+      }
+      unavailable[name] = name + " failed (exit " + std::to_string(res.exit_code) + ")";
+      std::cerr << "synth_accuracy: " << name << " failed:\n" << res.err;
+      report.failed = true;
+    }
+  }
+  return unavailable;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string bin_dir = PHOTOMILL_BIN_DIR, work_dir, truth_dir, outputs_dir, until;
+  bool small = false;
+  Bounds bounds;
+  std::vector<std::string> expect_fail;
+  return tool::run(
+      argc, argv,
+      {"synth_accuracy", "run the pipeline on a synth scene and compare every stage with the truth",
+       "synth_accuracy --small --work-dir /tmp/acc   |   synth_accuracy --truth data/demo --outputs out/demo"},
+      [&](CLI::App& app) {
+        app.add_option("--bin-dir", bin_dir, "Folder of the photomill executables")->capture_default_str();
+        auto* work = app.add_option("--work-dir", work_dir,
+                                    "Render a scene into DIR/set, run the pipeline into DIR/pipeline (both replaced)");
+        app.add_flag("--small", small, "A small scene (800x600, 6 + 8 views) for ctest");
+        app.add_option("--until", until, "Run the stages up to this one only; later figures are reported as not run")
+            ->check(CLI::IsMember(stage_order()))
+            ->needs(work);
+        auto* truth = app.add_option("--truth", truth_dir, "Evaluate existing outputs instead: the synth set with the truth");
+        auto* outputs = app.add_option("--outputs", outputs_dir,
+                                       "... and the folder with camera.yaml, cloud.ply, surface.txt, path.cl");
+        truth->needs(outputs);
+        outputs->needs(truth);
+        work->excludes(truth);
+        app.add_option("--surface-rms-bound-mm", bounds.surface_rms_mm, "Bound on the surface deviation RMS, mm")
+            ->capture_default_str()->check(CLI::PositiveNumber);
+        app.add_option("--expect-fail", expect_fail,
+                       "A figure known to be out of bounds (its name as printed, e.g. 'tool path gouge max'): "
+                       "FAIL is expected, ok fails the run")
+            ->take_last();
+      },
+      [&] {
+        if (work_dir.empty() && truth_dir.empty()) throw UsageError("give --work-dir DIR, or --truth DIR --outputs DIR");
+        Report report;
+        report.expected_failures.insert(expect_fail.begin(), expect_fail.end());
+        if (!truth_dir.empty()) {
+          evaluate(truth_dir, outputs_dir, {}, bounds, report);
+        } else {
+          const fs::path work = fs::absolute(work_dir), set = work / "set", out = work / "pipeline";
+          // Only the two subfolders this tool owns are replaced, never the folder given.
+          fs::remove_all(set);
+          fs::remove_all(out);
+          fs::create_directories(out);
+          synth::SynthOptions o;
+          o.camera.image_width_px = small ? 800 : 2000;
+          o.camera.image_height_px = small ? 600 : 1500;
+          const double f = small ? 960 : 2400;
+          o.camera.camera_matrix << f, 0, (o.camera.image_width_px - 1) / 2.0, 0, f,
+              (o.camera.image_height_px - 1) / 2.0, 0, 0, 1;
+          o.camera.distortion = {-0.08, 0.06, 0.0004, -0.0003, 0};
+          o.views.count = small ? 6 : 12;
+          o.calibration.count = small ? 8 : 10;
+          o.render.noise_sigma = 1;
+          o.surface_step_mm = 5;
+          o.command_line = "synth_accuracy";
+          synth::write_dataset(o, set.string());
+          tool::publish_committed();  // the stages below read the data set
+          evaluate(set, out, run_pipeline(bin_dir, set, out, until, report), bounds, report);
+        }
+        for (const auto& name : report.expected_failures) {
+          if (!report.seen.count(name)) throw UsageError("--expect-fail '" + name + "': no figure of that name was evaluated");
+        }
+        if (report.failed) throw std::runtime_error("some figures are out of bounds or a stage failed");
+      });
+}
