@@ -194,6 +194,21 @@ double coverage(const std::vector<View>& views, cv::Size size) {
   return cv::contourArea(hull) / (static_cast<double>(size.width) * size.height);
 }
 
+// "k3 = 1.79 +- 1.02": a camera parameter by its report name, with its standard deviation.
+std::string parameter_with_sigma(const CalibResult& r, const std::string& name) {
+  const auto& u = r.uncertainty;
+  const auto& c = r.camera;
+  for (int i = 0; i < kIntrinsics; ++i) {
+    if (intrinsic_names()[i] != name) continue;
+    const double value[kIntrinsics] = {c.fx(), c.fy(), c.cx(), c.cy()};
+    return name + " = " + fmt(value[i], 2) + " +- " + fmt(u.intrinsics_sigma[i], 2) + " px";
+  }
+  for (std::size_t i = 0; i < c.distortion.size() && i < static_cast<std::size_t>(kDistortion); ++i) {
+    if (distortion_names()[i] == name) return name + " = " + fmt(c.distortion[i], 3) + " +- " + fmt(u.distortion_sigma[i], 3);
+  }
+  return name;
+}
+
 // `normals`: the board normal of every kept view in its camera frame (boards only).
 void add_geometry_warnings(const CalibOptions& o, cv::Size size, Method method, const std::vector<View>& used,
                            const std::vector<Eigen::Vector3d>& normals, CalibResult& r) {
@@ -241,6 +256,19 @@ void add_geometry_warnings(const CalibOptions& o, cv::Size size, Method method, 
   const double f_rel = u.intrinsics_sigma[0] / r.camera.fx();
   if (f_rel > o.max_focal_sigma) {
     w.push_back("focal length poorly determined: sigma fx = " + fmt(100 * f_rel, 2) + " %");
+  }
+  if (!std::isfinite(u.projection_sigma_corners_px)) {
+    w.push_back("the fitted distortion folds over before the image corners (no ray projects there): the points cover " +
+                fmt(100 * r.coverage, 0) + " % of the image; add photos with the board in the corners and along the edges" +
+                (!o.model.fix_k3 ? ", or --fix-k3" : ""));
+  } else if (u.projection_sigma_corners_px > o.max_corner_sigma_px) {
+    w.push_back("the camera is uncertain towards the image corners: a ray there projects with sigma " +
+                fmt(u.projection_sigma_corners_px, 2) + " px (" + fmt(u.projection_sigma_centre_px, 2) +
+                " px at the centre, " + fmt(u.projection_sigma_edges_px, 2) + " px at the edges), mostly from " +
+                parameter_with_sigma(r, u.corner_sigma_parameter) + " (" + fmt(u.corner_sigma_parameter_px, 2) +
+                " px there); the points cover " +
+                fmt(100 * r.coverage, 0) + " % of the image: add photos with the board in the corners and along the edges" +
+                (u.corner_sigma_parameter == "k3" && !o.model.fix_k3 ? ", or --fix-k3" : ""));
   }
   if (r.coverage < o.min_coverage) {
     w.push_back("the points cover only " + fmt(100 * r.coverage, 0) +
@@ -372,7 +400,7 @@ CalibResult calibrate(const std::vector<Observation>& observations, const std::v
   r.rms_px = s.stats.final_rms_px;
   r.points_used = point_count(used);
   r.coverage = coverage(used, size);
-  r.uncertainty = estimate_uncertainty(used, o.model, s.params);
+  r.uncertainty = estimate_uncertainty(used, o.model, s.params, size.width, size.height);
   r.camera = to_camera(s.params, size, o.model, r.rms_px);
   add_geometry_warnings(o, size, r.method, used, normals, r);
   return r;

@@ -52,6 +52,7 @@ struct CalibOptions {
   double max_principal_point_sigma = 0.01;   // of the image diagonal
   double max_focal_sigma = 0.005;            // relative
   double min_coverage = 0.25;                // area fraction of the image covered by observations
+  double max_corner_sigma_px = 1.0;          // projection sigma at the image corners (Uncertainty)
 };
 
 struct ViewReport {

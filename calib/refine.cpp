@@ -313,7 +313,111 @@ RefineStats refine_opencv(const std::vector<View>& views, const ModelOptions& mo
   return s;
 }
 
-Uncertainty estimate_uncertainty(const std::vector<View>& views, const ModelOptions& model, const Parameters& p) {
+namespace {
+
+// Projection uncertainty: first-order propagation of the camera block's marginal covariance C to
+// the pixel of a ray fixed in the camera frame (Hartley & Zisserman, 2nd ed., 5.2.6), after the
+// part of the change a rotation of the camera absorbs is removed: a principal point or focal
+// length a little off is mostly the same image as the camera turned a little, which the poses of
+// the photos to be measured take up. This is the idea of mrcal's projection uncertainty (the
+// perturbed camera compared after the best transform between the two), here to first order and
+// for rays at infinity (a rotation): with J_i = d(uv_i)/d(camera block) and
+// R_i = d(uv_i)/d(rotation) at the pixels i of a grid over the image, the best rotation for a
+// change dc is w = -A dc, A = (sum R_i^T R_i)^-1 sum R_i^T J_i, and the pixel moves by
+// (J_i - R_i A) dc: Sigma_uv = (J - R A) C (J - R A)^T.
+struct RayJacobians {
+  Eigen::MatrixXd J;  // 2 x camera columns
+  Eigen::Matrix<double, 2, 3> R;
+  bool ok = false;
+};
+RayJacobians ray_jacobians(const ModelOptions& model, const Parameters& p, const std::vector<int>& cols,
+                           const Eigen::Vector2d& pixel) {
+  geometry::CameraModel camera;
+  to_model_block(p.intrinsics.data(), p.distortion.data(), model.fix_aspect_ratio, camera.params.data());
+  camera.distortion_count = model.rational ? 8 : 5;
+  RayJacobians out;
+  const auto ray = geometry::undistort(camera, pixel);
+  if (!ray) return out;  // the model folds there
+  const ResidualCost cost(new ReprojectionResidual{Eigen::Vector3d(ray->x(), ray->y(), 1.0), pixel, model});
+  const std::array<double, kPose> identity{};
+  double r[2];
+  Eigen::Matrix<double, 2, kIntrinsics, Eigen::RowMajor> Ji;
+  Eigen::Matrix<double, 2, kDistortion, Eigen::RowMajor> Jd;
+  Eigen::Matrix<double, 2, kPose, Eigen::RowMajor> Jp;
+  const double* params[3] = {p.intrinsics.data(), p.distortion.data(), identity.data()};
+  double* jac[3] = {Ji.data(), Jd.data(), Jp.data()};
+  cost.Evaluate(params, r, jac);
+  const auto nc = static_cast<Eigen::Index>(cols.size());
+  out.J.resize(2, nc);
+  for (Eigen::Index k = 0; k < nc; ++k) {
+    out.J.col(k) = cols[k] < kIntrinsics ? Eigen::Vector2d(Ji.col(cols[k])) : Eigen::Vector2d(Jd.col(cols[k] - kIntrinsics));
+  }
+  out.R = Jp.leftCols<3>();
+  out.ok = true;
+  return out;
+}
+
+struct ProjectionSigma {
+  double sigma_px = 0;        // larger axis of the 1-sigma ellipse
+  int worst_column = -1;      // the camera column whose own sigma moves the pixel most
+  double worst_column_px = 0;
+};
+ProjectionSigma projection_sigma(const RayJacobians& ray, const Eigen::MatrixXd& A, const Eigen::MatrixXd& cov) {
+  if (!ray.ok) return {std::numeric_limits<double>::infinity(), -1, 0};
+  const Eigen::MatrixXd Jc = ray.J - ray.R * A;
+  const Eigen::Matrix2d S = Jc * cov * Jc.transpose();
+  ProjectionSigma out;
+  out.sigma_px = std::sqrt(std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(S).eigenvalues().maxCoeff()));
+  for (Eigen::Index k = 0; k < Jc.cols(); ++k) {
+    const double px = Jc.col(k).norm() * std::sqrt(std::max(0.0, cov(k, k)));
+    if (px > out.worst_column_px) {
+      out.worst_column_px = px;
+      out.worst_column = static_cast<int>(k);
+    }
+  }
+  return out;
+}
+
+// Fills u.projection_sigma_* (see Uncertainty) from the camera block's covariance.
+void add_projection_sigma(const ModelOptions& model, const Parameters& p, const std::vector<int>& cols,
+                          const Eigen::MatrixXd& cov, int width_px, int height_px, Uncertainty& u) {
+  const double w = width_px - 1.0, h = height_px - 1.0;  // centres of the outermost pixels
+  const auto nc = static_cast<Eigen::Index>(cols.size());
+  // The rotation that best absorbs a change of the camera, fitted over a 9 x 7 grid.
+  Eigen::Matrix3d RtR = Eigen::Matrix3d::Zero();
+  Eigen::MatrixXd RtJ = Eigen::MatrixXd::Zero(3, nc);
+  for (int gy = 0; gy < 7; ++gy) {
+    for (int gx = 0; gx < 9; ++gx) {
+      const RayJacobians ray = ray_jacobians(model, p, cols, {w * gx / 8.0, h * gy / 6.0});
+      if (!ray.ok) continue;
+      RtR += ray.R.transpose() * ray.R;
+      RtJ += ray.R.transpose() * ray.J;
+    }
+  }
+  const Eigen::MatrixXd A = RtR.completeOrthogonalDecomposition().solve(RtJ);
+  auto at = [&](double x, double y) { return projection_sigma(ray_jacobians(model, p, cols, {x, y}), A, cov); };
+  u.projection_sigma_centre_px = at(w / 2, h / 2).sigma_px;
+  u.projection_sigma_edges_px = 0;
+  for (const auto& e : {std::pair{w / 2, 0.0}, std::pair{w / 2, h}, std::pair{0.0, h / 2}, std::pair{w, h / 2}}) {
+    u.projection_sigma_edges_px = std::max(u.projection_sigma_edges_px, at(e.first, e.second).sigma_px);
+  }
+  u.projection_sigma_corners_px = 0;
+  for (const auto& c : {std::pair{0.0, 0.0}, std::pair{w, 0.0}, std::pair{0.0, h}, std::pair{w, h}}) {
+    const ProjectionSigma s = at(c.first, c.second);
+    if (s.sigma_px < u.projection_sigma_corners_px) continue;
+    u.projection_sigma_corners_px = s.sigma_px;
+    if (s.worst_column >= 0) {
+      const int col = cols[static_cast<std::size_t>(s.worst_column)];
+      u.corner_sigma_parameter = col < kIntrinsics ? intrinsic_names()[col] : distortion_names()[col - kIntrinsics];
+      u.corner_sigma_parameter_px = s.worst_column_px;
+    }
+  }
+}
+
+}  // namespace
+
+Uncertainty estimate_uncertainty(const std::vector<View>& views, const ModelOptions& model, const Parameters& p,
+                                 int width_px, int height_px) {
   // Normal equations with the camera block c (free intrinsics + distortion) and one pose block per
   // view; the poses are eliminated by the Schur complement, which gives the camera block's
   // marginal covariance exactly: Cov_c = s^2 (A_cc - sum_v A_cv A_vv^-1 A_vc)^-1.
@@ -389,6 +493,7 @@ Uncertainty estimate_uncertainty(const std::vector<View>& views, const ModelOpti
     }
   }
   if (model.fix_aspect_ratio) u.intrinsics_sigma[1] = u.intrinsics_sigma[0];
+  add_projection_sigma(model, p, cols, cov, width_px, height_px, u);
   return u;
 }
 

@@ -63,7 +63,17 @@ struct Uncertainty {
   double sigma_px = 0;                 // s: a-posteriori standard deviation of one coordinate
   int degrees_of_freedom = 0;          // m - n
   std::vector<std::string> undetermined;  // parameters the data do not fix (J^T J singular there)
+  // How far the camera's projection of a ray may be off (1 sigma, px, the larger axis of its error
+  // ellipse) once a small rotation of the camera has taken up what it can (refine.cpp): at the
+  // image centre, the worst of the four edge midpoints and of the four corners; at the worst
+  // corner, the free parameter whose own sigma moves it most.
+  double projection_sigma_centre_px = 0;
+  double projection_sigma_edges_px = 0;
+  double projection_sigma_corners_px = 0;
+  std::string corner_sigma_parameter;        // e.g. "k3"
+  double corner_sigma_parameter_px = 0;      // that parameter's sigma times its pixel effect there
 };
-Uncertainty estimate_uncertainty(const std::vector<View>& views, const ModelOptions& model, const Parameters& p);
+Uncertainty estimate_uncertainty(const std::vector<View>& views, const ModelOptions& model, const Parameters& p,
+                                 int width_px, int height_px);
 
 }  // namespace photomill::calib

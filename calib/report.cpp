@@ -95,6 +95,9 @@ std::vector<std::string> text_report(const CalibResult& r) {
     }
   }
   lines.push_back("(+- one standard deviation; a-posteriori sigma of one coordinate " + fmt("%.4f", u.sigma_px) + " px)");
+  lines.push_back("projection sigma " + fmt("%.3f", u.projection_sigma_centre_px) + " px at the centre, " +
+                  fmt("%.3f", u.projection_sigma_edges_px) + " px at the edges, " +
+                  fmt("%.3f", u.projection_sigma_corners_px) + " px at the corners");
   return lines;
 }
 
@@ -131,6 +134,13 @@ void write_json_report(std::ostream& out, const CalibResult& r, const CalibOptio
   j.end_array();
   j.field("sigma_px", u.sigma_px);
   j.field("degrees_of_freedom", u.degrees_of_freedom);
+  j.end_object();
+  j.key("projection_sigma_px").begin_object();
+  j.field("centre", u.projection_sigma_centre_px);
+  j.field("edges", u.projection_sigma_edges_px);
+  j.field("corners", u.projection_sigma_corners_px);
+  j.field("corner_parameter", u.corner_sigma_parameter);
+  j.field("corner_parameter_px", u.corner_sigma_parameter_px);
   j.end_object();
   j.key("optimizer_stats").begin_object();
   j.field("iterations", static_cast<std::int64_t>(r.stats.iterations));
