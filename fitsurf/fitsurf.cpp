@@ -5,6 +5,8 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
+#include <string>
 #include <type_traits>
 
 #include "fitsurf/numbers.hpp"
@@ -249,6 +251,7 @@ Result fit_point_cloud(const PointCloud& cloud, const Options& options, const st
   Result r;
   r.input_points = cloud.points_mm.size();
   if (cloud.points_mm.empty()) throw GeometryError("no points to fit: the input holds none");
+  std::optional<log::Step> step(std::in_place, "selecting the part's points among " + std::to_string(cloud.points_mm.size()));
   r.selection = select_part(cloud.points_mm, options.select);
   std::vector<Eigen::Vector3d> points;
   points.reserve(r.selection.kept.size());
@@ -262,12 +265,16 @@ Result fit_point_cloud(const PointCloud& cloud, const Options& options, const st
   if (!(options.prefit.samples_per_span > 0) || !(options.prefit.outlier_threshold > 0)) {
     throw UsageError("the prefit's samples per span and outlier threshold must be positive");
   }
+  step.emplace("fitting " + std::to_string(points.size()) + " points");
   if (use_kernel_prefit(options, points.size(), fit_options)) {
     r.prefit.emplace();
     r.fit = kernel_prefit_fit(points, fit_options, options.prefit, *r.prefit);
   } else {
     if (options.tolerance) {
+      step.emplace("choosing the net for a tolerance of " + sig(options.tolerance->tolerance_mm, 3) + " mm");
       r.tolerance = choose_net(points, fit_options, *options.tolerance);
+      step.emplace("fitting " + std::to_string(points.size()) + " points, net " + std::to_string(r.tolerance->poles_u) +
+                   "x" + std::to_string(r.tolerance->poles_v));
       fit_options.poles_u = r.tolerance->poles_u;
       fit_options.poles_v = r.tolerance->poles_v;
     }
@@ -275,6 +282,7 @@ Result fit_point_cloud(const PointCloud& cloud, const Options& options, const st
   }
   r.fit.pca_slope_deg = pca_slope_deg;
   r.fit.xy_slope_deg = xy_slope_deg;
+  step.emplace("the data's outline and the fold check");
   auto outline_and_check = [&] {
     r.fit.surface.boundary_uv = data_outline(r.fit.uv, r.fit.weight, r.fit.box.length_u_mm(),
                                              r.fit.box.length_v_mm(), options.outline);
@@ -306,6 +314,7 @@ Result fit_point_cloud(const PointCloud& cloud, const Options& options, const st
               "slide along a steep flank); fitted RMS " + sig(r.fit.round_rms_mm.back(), 4) +
               " mm. A larger --smoothing lets the correction go further");
   }
+  step.reset();
   r.stats = residual_stats(r.fit.residual_mm, r.fit);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;

@@ -18,8 +18,10 @@ int main(int argc, char** argv) {
       [&](CLI::App& app) { photomill::match::add_options(app, cli); },
       [&] {
         const auto inputs = photomill::match::read_inputs(cli);
-        const auto result = photomill::match::match(inputs, cli.options, [](const std::string& m) {
+        photomill::log::Step step("matching");
+        const auto result = photomill::match::match(inputs, cli.options, [&step](const std::string& m) {
           photomill::log::debug(m);
+          step.set("matching: " + m);
         });
         photomill::match::report(result, cli);
         photomill::match::require_tracks(result, cli);

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "tests/run_tool.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace photomill::test {
 namespace {
@@ -70,6 +71,46 @@ std::vector<CliCase> unbuilt_cases() {
 
 INSTANTIATE_TEST_SUITE_P(Unbuilt, Cli, ::testing::ValuesIn(unbuilt_cases()));
 GTEST_ALLOW_UNINSTANTIATED_PARAMETERIZED_TEST(Cli);
+
+// Progress on stderr without -v (issue 27): every long stage names the step it is in. With
+// PHOTOMILL_PROGRESS_AFTER_S=0 every step prints at its start (by default only steps that last
+// 2 s do, which a test must not time); -q prints nothing. The demo's true marker observations
+// through match, triangulate, then the demo's scan sample through fitsurf and toolpath.
+TEST(Progress, EveryStageNamesItsStepsWithoutVerbose) {
+  TempDir dir;
+  const std::string demo = std::string(PHOTOMILL_SOURCE_DIR) + "/data/demo/";
+  const std::string tracks = (dir.path() / "tracks.csv").string(), cloud = (dir.path() / "cloud.ply").string();
+  const std::string surface = (dir.path() / "surface.txt").string();
+  struct Run {
+    std::string tool;
+    std::vector<std::string> args;
+    std::vector<std::string> steps;
+  };
+  const std::vector<Run> runs = {
+      {"match", {demo + "observations.csv", "--camera", demo + "camera.yaml", "-o", tracks}, {"match: matching"}},
+      {"triangulate",
+       {tracks, "--camera", demo + "camera.yaml", "--control-points", demo + "control_points.csv", "-o", cloud},
+       {"triangulate: orienting 12 images", "triangulate: final bundle adjustment of 12 images",
+        "triangulate: uncertainty of every point"}},
+      {"fitsurf",
+       {demo + "surface.ply", "--keep-box", "-85,-60,-5,85,60,100", "--net", "20x14", "-o", surface},
+       {"fitsurf: selecting the part's points", "fitsurf: fitting ", "fitsurf: the data's outline"}},
+      {"toolpath", {surface, "--tool-radius-mm", "3", "--scallop-mm", "0.05", "--verify", "-o", "/dev/null"},
+       {"toolpath: planning the passes", "toolpath: verifying the path on a z-map"}},
+  };
+  ::setenv("PHOTOMILL_PROGRESS_AFTER_S", "0", 1);
+  for (const Run& run : runs) {
+    const ToolResult r = run_tool(run.tool, run.args);
+    ASSERT_EQ(r.exit_code, 0) << run.tool << ": " << r.err;
+    for (const auto& step : run.steps) EXPECT_NE(r.err.find(step), std::string::npos) << step << "\n" << r.err;
+    std::vector<std::string> quiet = run.args;
+    quiet.insert(quiet.begin(), "-q");
+    const ToolResult q = run_tool(run.tool, quiet);
+    EXPECT_EQ(q.exit_code, 0) << run.tool << ": " << q.err;
+    EXPECT_EQ(q.err, "") << run.tool << " -q";
+  }
+  ::unsetenv("PHOTOMILL_PROGRESS_AFTER_S");
+}
 
 }  // namespace
 }  // namespace photomill::test

@@ -65,12 +65,15 @@ int main(int argc, char** argv) {
         log::debug("surface: degrees " + std::to_string(in.surface.degree_u) + " x " + std::to_string(in.surface.degree_v) +
                    ", " + std::to_string(in.surface.num_poles_u) + " x " + std::to_string(in.surface.num_poles_v) +
                    " poles, face " + std::to_string(in.face) + " of " + std::to_string(in.faces));
+        std::optional<log::Step> step(std::in_place, "planning the passes and stepping along them");
         const ToolpathResult result = generate_toolpath(in.surface, o);
         std::optional<ZmapResult> checked;
         if (verify) {
+          step.emplace("verifying the path on a z-map");
           zmap.tool_radius_mm = o.tool_radius_mm, zmap.stock_mm = o.stock_mm, zmap.threads = o.threads;
           checked = simulate_zmap(in.surface, result.cl, zmap);
         }
+        step.reset();
         const ReportContext ctx{input, in.face, in.faces, &o, &result, checked ? &*checked : nullptr, direction, pattern};
         const auto lines = summary_lines(ctx);
         for (std::size_t k = 0; k < lines.size(); ++k) (k == 1 && !result.gouges.empty() ? log::warn : log::info)(lines[k]);

@@ -2,6 +2,7 @@
 #include "triangulate/reconstruct.hpp"
 
 #include <algorithm>
+#include <optional>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -913,6 +914,9 @@ Reconstruction Pipeline::run() {
   check_input();
 
   lap("indexing and undistorting the observations");
+  std::optional<log::Step> step;
+  step.emplace("orienting " + std::to_string(scene_.images.size()) + " images and triangulating " +
+               std::to_string(scene_.tracks.size()) + " tracks");
   if (!input_.known_poses.empty()) {
     register_from_known();
     report_.pose_initialisation = "known_poses";
@@ -937,12 +941,16 @@ Reconstruction Pipeline::run() {
     }
   }
   lap("poses and points");
+  step.reset();
   choose_datum();
+  step.emplace("final bundle adjustment of " + std::to_string(scene_.registered_count()) + " images");
   final_adjustment();
   lap("final adjustment");
 
   Reconstruction r;
+  step.emplace("uncertainty of every point and statistics");
   finish(r);
+  step.reset();
   lap("statistics and uncertainty");
   r.setup = setup_;
   r.scene = std::move(scene_);
