@@ -325,6 +325,36 @@ namespace {
 // R_i = d(uv_i)/d(rotation) at the pixels i of a grid over the image, the best rotation for a
 // change dc is w = -A dc, A = (sum R_i^T R_i)^-1 sum R_i^T J_i, and the pixel moves by
 // (J_i - R_i A) dc: Sigma_uv = (J - R A) C (J - R A)^T.
+// One observation's residual (px) with its Jacobians: the free camera columns `cols` (ambient
+// indices, intrinsics 0..3 then distortion) and the pose block. The uncertainty's normal
+// equations and the projection sigma both evaluate it.
+struct ObservationJacobians {
+  Eigen::Vector2d residual;
+  Eigen::MatrixXd camera;  // 2 x cols.size()
+  Eigen::Matrix<double, 2, kPose> pose;
+};
+ObservationJacobians observation_jacobians(const ModelOptions& model, const Parameters& p, const double* pose,
+                                           const Eigen::Vector3d& world_mm, const Eigen::Vector2d& observed_px,
+                                           const std::vector<int>& cols) {
+  const ResidualCost cost(new ReprojectionResidual{world_mm, observed_px, model});
+  double r[2];
+  Eigen::Matrix<double, 2, kIntrinsics, Eigen::RowMajor> Ji;
+  Eigen::Matrix<double, 2, kDistortion, Eigen::RowMajor> Jd;
+  Eigen::Matrix<double, 2, kPose, Eigen::RowMajor> Jp;
+  const double* params[3] = {p.intrinsics.data(), p.distortion.data(), pose};
+  double* jac[3] = {Ji.data(), Jd.data(), Jp.data()};
+  cost.Evaluate(params, r, jac);
+  ObservationJacobians out;
+  out.residual = {r[0], r[1]};
+  out.camera.resize(2, static_cast<Eigen::Index>(cols.size()));
+  for (std::size_t k = 0; k < cols.size(); ++k) {
+    const int c = cols[k];
+    out.camera.col(static_cast<Eigen::Index>(k)) = c < kIntrinsics ? Eigen::Vector2d(Ji.col(c)) : Eigen::Vector2d(Jd.col(c - kIntrinsics));
+  }
+  out.pose = Jp;
+  return out;
+}
+
 struct RayJacobians {
   Eigen::MatrixXd J;  // 2 x camera columns
   Eigen::Matrix<double, 2, 3> R;
@@ -338,21 +368,11 @@ RayJacobians ray_jacobians(const ModelOptions& model, const Parameters& p, const
   RayJacobians out;
   const auto ray = geometry::undistort(camera, pixel);
   if (!ray) return out;  // the model folds there
-  const ResidualCost cost(new ReprojectionResidual{Eigen::Vector3d(ray->x(), ray->y(), 1.0), pixel, model});
   const std::array<double, kPose> identity{};
-  double r[2];
-  Eigen::Matrix<double, 2, kIntrinsics, Eigen::RowMajor> Ji;
-  Eigen::Matrix<double, 2, kDistortion, Eigen::RowMajor> Jd;
-  Eigen::Matrix<double, 2, kPose, Eigen::RowMajor> Jp;
-  const double* params[3] = {p.intrinsics.data(), p.distortion.data(), identity.data()};
-  double* jac[3] = {Ji.data(), Jd.data(), Jp.data()};
-  cost.Evaluate(params, r, jac);
-  const auto nc = static_cast<Eigen::Index>(cols.size());
-  out.J.resize(2, nc);
-  for (Eigen::Index k = 0; k < nc; ++k) {
-    out.J.col(k) = cols[k] < kIntrinsics ? Eigen::Vector2d(Ji.col(cols[k])) : Eigen::Vector2d(Jd.col(cols[k] - kIntrinsics));
-  }
-  out.R = Jp.leftCols<3>();
+  const ObservationJacobians j =
+      observation_jacobians(model, p, identity.data(), Eigen::Vector3d(ray->x(), ray->y(), 1.0), pixel, cols);
+  out.J = j.camera;
+  out.R = j.pose.leftCols<3>();
   out.ok = true;
   return out;
 }
@@ -434,28 +454,17 @@ Uncertainty estimate_uncertainty(const std::vector<View>& views, const ModelOpti
   Eigen::MatrixXd S = Eigen::MatrixXd::Zero(nc, nc);
   double sse = 0;
   std::size_t m = 0;
-  Parameters q = p;
   for (std::size_t v = 0; v < views.size(); ++v) {
     Eigen::MatrixXd Acv = Eigen::MatrixXd::Zero(nc, kPose);
     Eigen::Matrix<double, kPose, kPose> Avv = Eigen::Matrix<double, kPose, kPose>::Zero();
     for (std::size_t i = 0; i < views[v].world_mm.size(); ++i) {
-      const ResidualCost cost(new ReprojectionResidual{views[v].world_mm[i], views[v].observed_px[i], model});
-      double r[2];
-      Eigen::Matrix<double, 2, kIntrinsics, Eigen::RowMajor> Ji;
-      Eigen::Matrix<double, 2, kDistortion, Eigen::RowMajor> Jd;
-      Eigen::Matrix<double, 2, kPose, Eigen::RowMajor> Jp;
-      const double* params[3] = {q.intrinsics.data(), q.distortion.data(), q.poses[v].data()};
-      double* jac[3] = {Ji.data(), Jd.data(), Jp.data()};
-      cost.Evaluate(params, r, jac);
-      sse += r[0] * r[0] + r[1] * r[1];
+      const ObservationJacobians j =
+          observation_jacobians(model, p, p.poses[v].data(), views[v].world_mm[i], views[v].observed_px[i], cols);
+      sse += j.residual.squaredNorm();
       m += 2;
-      Eigen::MatrixXd Jc(2, nc);
-      for (Eigen::Index k = 0; k < nc; ++k) {
-        Jc.col(k) = cols[k] < kIntrinsics ? Eigen::Vector2d(Ji.col(cols[k])) : Eigen::Vector2d(Jd.col(cols[k] - kIntrinsics));
-      }
-      S += Jc.transpose() * Jc;
-      Acv += Jc.transpose() * Jp;
-      Avv += Jp.transpose() * Jp;
+      S += j.camera.transpose() * j.camera;
+      Acv += j.camera.transpose() * j.pose;
+      Avv += j.pose.transpose() * j.pose;
     }
     S -= Acv * Avv.completeOrthogonalDecomposition().pseudoInverse() * Acv.transpose();
   }

@@ -666,6 +666,12 @@ std::string header_file_name(const CadHeader& header, const std::string& path) {
 }
 
 Handle(TCollection_HAsciiString) hstring(const std::string& s) { return new TCollection_HAsciiString(s.c_str()); }
+// A STEP header list of one string ('author', ...).
+Handle(Interface_HArray1OfHAsciiString) one_string(const std::string& s) {
+  Handle(Interface_HArray1OfHAsciiString) list = new Interface_HArray1OfHAsciiString(1, 1);
+  list->SetValue(1, hstring(s));
+  return list;
+}
 
 const std::string& originating_system() {
   static const std::string s = std::string("photomill ") + PHOTOMILL_VERSION;
@@ -677,18 +683,12 @@ const std::string& originating_system() {
 void set_step_header(const Handle(StepData_StepModel)& model, const CadHeader& header, const std::string& path) {
   APIHeaderSection_MakeHeader h(model);
   h.SetName(hstring(header_file_name(header, path)));
-  Handle(Interface_HArray1OfHAsciiString) author = new Interface_HArray1OfHAsciiString(1, 1);
-  author->SetValue(1, hstring(login_name()));
-  h.SetAuthor(author);
-  Handle(Interface_HArray1OfHAsciiString) organization = new Interface_HArray1OfHAsciiString(1, 1);
-  organization->SetValue(1, hstring(""));
-  h.SetOrganization(organization);
+  h.SetAuthor(one_string(login_name()));
+  h.SetOrganization(one_string(""));
   h.SetOriginatingSystem(hstring(originating_system()));
   h.SetPreprocessorVersion(hstring(std::string("Open CASCADE ") + OCC_VERSION_COMPLETE));
   h.SetAuthorisation(hstring(""));
-  Handle(Interface_HArray1OfHAsciiString) description = new Interface_HArray1OfHAsciiString(1, 1);
-  description->SetValue(1, hstring(header.description));
-  h.SetDescription(description);
+  h.SetDescription(one_string(header.description));
   h.Apply(model);
 }
 
