@@ -50,6 +50,14 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--plane-threshold-mm", s.plane_threshold_mm, "Distance within which a point belongs to the plane")
       ->capture_default_str()->group(sel);
   app.add_option("--seed", s.seed, "Seed of RANSAC's sampling")->capture_default_str()->group(sel);
+  app.add_option("--walls", c.walls, "Where the part stands on walls (steps steeper than --wall-slope-deg): "
+                 "auto fits its top alone, dropping the walls and the floor at their foot; off fits them all")
+      ->check(CLI::IsMember({"auto", "off"}))->capture_default_str()->group(sel);
+  app.add_option("--wall-slope-deg", s.walls.slope_deg, "A face steeper than this is a wall (degrees, 45-89.9)")
+      ->capture_default_str()->check(CLI::Range(45.0, 89.9))->group(sel);
+  app.add_option("--wall-radius-mm", s.walls.radius_mm,
+                 "Neighbourhood of a point's normal and of the regions (mm; at least 3 mean point spacings)")
+      ->capture_default_str()->check(CLI::Range(0.01, 1000.0))->group(sel);
 
   const std::string srf = "Surface";
   app.add_option("--degree-u", f.degree_u, "Degree p along u")->capture_default_str()->check(CLI::Range(1, 25))->group(srf);
@@ -174,6 +182,7 @@ Options to_options(const Cli& c) {
     if (!(b[0] < b[3] && b[1] < b[4] && b[2] < b[5])) throw UsageError("--keep-box: each minimum must be below its maximum");
     o.select.keep_box_mm = std::array<double, 6>{b[0], b[1], b[2], b[3], b[4], b[5]};
   }
+  o.select.walls.enabled = c.walls == "auto";
   if (!c.keep_above.empty()) {
     const Eigen::Vector3d n(c.keep_above[0], c.keep_above[1], c.keep_above[2]);
     if (!(n.norm() > 0) || !std::isfinite(c.keep_above[3])) throw UsageError("--keep-above: A,B,C must not all be 0");

@@ -25,6 +25,7 @@ struct Cli {
   std::string prefit = "auto";
   bool no_correction = false;
   std::vector<double> keep_box, keep_above;
+  std::string walls = "auto";  // --walls auto|off
   double tolerance_mm = 0;       // used only when --tolerance is given
   bool tolerance_given = false;  // --tolerance on the command line: tolerance mode, else a fixed net
   std::string tolerance_stat = "rms";

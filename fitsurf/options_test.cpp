@@ -62,6 +62,26 @@ const std::string& dome_l_shaped() {
   return text;
 }
 
+// The dome as a walled part: its top over the rectangle (z 20 to 38 mm) on walls standing on a
+// plate at z = 0 that reaches 10 mm beyond them (2 mm grid, 1 350 points).
+constexpr int kWallPlatePoints = 1350;
+const std::string& dome_on_walls() {
+  static const std::string text = [] {
+    std::vector<Eigen::Vector3d> pts = fitsurf::test::sample(fitsurf::test::shape("dome"), 3000, 0.01, 41);
+    int plate = 0;
+    for (double x = -84; x <= 84; x += 2) {
+      for (double y = -59; y <= 59; y += 2) {
+        if (std::abs(x) < 75 && std::abs(y) < 50) continue;
+        pts.emplace_back(x, y, 0.01 * std::sin(x + y));
+        ++plate;
+      }
+    }
+    EXPECT_EQ(plate, kWallPlatePoints);
+    return xyz_text(pts);
+  }();
+  return text;
+}
+
 struct Outcome {
   ToolResult r;
   std::string report;
@@ -136,6 +156,25 @@ INSTANTIATE_TEST_SUITE_P(
                      EXPECT_GT(json_number(wide.report, "dropped_plane", "selection"), 500);
                    }},
         bad("plane_threshold_mm_zero", {"--plane-threshold-mm", "0"}, "--plane-threshold-mm"),
+        OptionCase{"walls_auto", on({}, dome_on_walls), 0, "the part stands on walls",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(json_number(r.report, "dropped_floor", "walls"), kWallPlatePoints);
+                     EXPECT_EQ(json_number(r.report, "fitted_points", "selection"), 3000);
+                   }},
+        // Off, the plate and the top make two layers where the walls stand: refused as a fold.
+        OptionCase{"walls_off", on({"--walls", "off"}, dome_on_walls), 1, "folds over its projection plane", nullptr},
+        bad("walls_unknown", {"--walls", "maybe"}, "--walls"),
+        OptionCase{"wall_slope_deg", on({"--wall-slope-deg", "60"}, dome_on_walls), 0, "steeper than 60 degrees",
+                   [](const Outcome& r) { EXPECT_EQ(json_number(r.report, "dropped_floor", "walls"), kWallPlatePoints); }},
+        bad("wall_slope_deg_too_low", {"--wall-slope-deg", "30"}, "--wall-slope-deg"),
+        // A radius longer than the walls are high joins the plate to the top: no wall is found.
+        OptionCase{"wall_radius_mm", on({"--wall-radius-mm", "30"}, dome_on_walls), 1, "folds over its projection plane",
+                   [](const Outcome&) {
+                     const Outcome small = fit({"--wall-radius-mm", "3"}, dome_on_walls());
+                     ASSERT_EQ(small.r.exit_code, 0) << small.r.err;
+                     EXPECT_NEAR(json_number(small.report, "radius_mm", "walls"), 5.5, 1.0);
+                   }},
+        bad("wall_radius_mm_zero", {"--wall-radius-mm", "0"}, "--wall-radius-mm"),
         // Surface
         OptionCase{"degree_u", on({"--degree-u", "2"}), 0, "",
                    [](const Outcome& r) {

@@ -63,6 +63,20 @@ void write_report(std::ostream& out, const Result& r, const Options& o, const st
   } else {
     j.null();
   }
+  j.key("walls");
+  if (const auto& w = r.selection.walls) {
+    j.begin_object();
+    j.field("wall_points", w->wall_points);
+    j.field("dropped_floor", w->dropped_floor);
+    j.field("top_points", w->top_points);
+    j.field("radius_mm", w->radius_mm);
+    j.field("floor_z_mm", w->floor_z_mm);
+    j.field("wall_top_z_mm", w->wall_top_z_mm);
+    j.key("top_xy_box_mm").begin_array().value(w->box_min.x()).value(w->box_min.y()).value(w->box_max.x()).value(w->box_max.y()).end_array();
+    j.end_object();
+  } else {
+    j.null();
+  }
   j.end_object();
   j.key("surface").begin_object();
   j.field("degree_u", s.degree_u);
@@ -189,6 +203,13 @@ std::vector<std::string> summary(const Result& r, const Options& o) {
        (o.weight_by_sigma ? ", points weighted by 1/sigma^2" : "") + ", " + std::to_string(f.round_rms_mm.size()) + " round" +
        (f.round_rms_mm.size() == 1 ? "" : "s") + ", " + sig(r.seconds, 3) + " s";
   std::vector<std::string> lines{s};
+  if (const auto& w = r.selection.walls) {
+    lines.push_back("the part stands on walls (faces steeper than " + num(o.select.walls.slope_deg) + " degrees, from z " +
+                    num(w->floor_z_mm) + " up to " + num(w->wall_top_z_mm) + " mm): its top fitted alone, to the walls' edge (x " + num(w->box_min.x()) +
+                    " to " + num(w->box_max.x()) + ", y " + num(w->box_min.y()) + " to " + num(w->box_max.y()) + " mm); " + std::to_string(w->wall_points) +
+                    " points of the walls and " + std::to_string(w->dropped_floor) +
+                    " of the floor at their foot left out (the walls are not in the surface; --walls off fits them all)");
+  }
   if (r.prefit) {
     const PrefitSummary& k = *r.prefit;
     lines.push_back("kernel prefit (" + std::to_string(r.selection.kept.size()) + " points" +

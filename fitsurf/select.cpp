@@ -92,7 +92,10 @@ Plane dominant_plane(const std::vector<Eigen::Vector3d>& points, const std::vect
   return best;
 }
 
-Selection select_part(const std::vector<Eigen::Vector3d>& points, const SelectOptions& o) {
+namespace {
+
+// The box, the plane above, the dominant plane.
+Selection select_by_box_and_planes(const std::vector<Eigen::Vector3d>& points, const SelectOptions& o) {
   Selection sel;
   sel.kept.reserve(points.size());
   for (std::size_t k = 0; k < points.size(); ++k) {
@@ -145,6 +148,19 @@ Selection select_part(const std::vector<Eigen::Vector3d>& points, const SelectOp
                         " of the points within " + sig(o.plane_threshold_mm) + " mm and only " +
                         std::to_string(sel.kept.size()) +
                         " lie above it; nothing stands on the plate (drop --drop-plane to fit the plane itself)");
+  }
+  return sel;
+}
+
+}  // namespace
+
+Selection select_part(const std::vector<Eigen::Vector3d>& points, const SelectOptions& o) {
+  Selection sel = select_by_box_and_planes(points, o);
+  sel.walls = split_walls(points, sel.kept, o.walls);
+  if (sel.walls && sel.kept.size() < 3) {
+    throw GeometryError("only walls and the floor at their foot are left (" + std::to_string(sel.walls->wall_points) +
+                        " points on faces steeper than " + sig(o.walls.slope_deg) +
+                        " degrees): no top to fit; --walls off fits them all as one height field");
   }
   return sel;
 }

@@ -1,6 +1,7 @@
 // Selecting the part in a point cloud before fitting: the part usually stands on a plate or table
-// carrying markers, whose points must not be fitted. Three filters, applied in this order:
-// keep inside a box, keep above a plane, drop the dominant plane (RANSAC) and what lies beyond it.
+// carrying markers, whose points must not be fitted. Four filters, applied in this order:
+// keep inside a box, keep above a plane, drop the dominant plane (RANSAC) and what lies beyond it,
+// and, where the part stands on walls, drop the walls and the floor at their foot (walls.hpp).
 #pragma once
 
 #include <array>
@@ -10,6 +11,8 @@
 #include <vector>
 
 #include <Eigen/Core>
+
+#include "fitsurf/walls.hpp"
 
 namespace photomill::fitsurf {
 
@@ -38,6 +41,7 @@ struct SelectOptions {
   // The dominant plane must hold at least this fraction of the points to be dropped.
   double min_plane_fraction = 0.05;
   std::uint64_t seed = 1;
+  WallOptions walls;
 };
 
 struct Selection {
@@ -47,6 +51,7 @@ struct Selection {
   std::size_t dropped_plane = 0;        // inliers of the dominant plane
   std::size_t dropped_beyond_plane = 0; // on its far side
   std::optional<Plane> plane;           // the dominant plane, normal towards the kept side
+  std::optional<WallSummary> walls;     // set when the part stands on walls
 };
 
 // Throws GeometryError when a filter leaves nothing, when no dominant plane is found, or when

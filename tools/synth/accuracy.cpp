@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "fitsurf/outline.hpp"
 #include "formats/bspline.hpp"
 #include "formats/camera.hpp"
 #include "formats/error.hpp"
@@ -96,7 +97,7 @@ struct Bounds {
   double focal_percent = 0.2, principal_point_px = 2.0;
   double marker_rms_mm = 0.1, marker_max_mm = 0.3;
   double surface_rms_mm = 0.1, surface_max_mm = 0.5;
-  double gouge_mm = 0.05, excess_mm = 0.5;
+  double gouge_mm = 0.05, excess_p95_mm = 0.1, excess_mm = 0.5;
 };
 
 std::string expand(std::string s, const fs::path& set, const fs::path& work) {
@@ -180,8 +181,13 @@ void marker_figures(Report& r, const std::map<PointId, Eigen::Vector3d>& truth, 
   r.line("marker corner 3D error max", n ? max : NAN, "mm", b.marker_max_mm);
 }
 
-// Vertical deviation of the fitted surface from the true one, over the part inside the edge blend.
+// A walled part's top is judged from this far inside its walls (issue 24: "the true surface more
+// than 2 mm in x, y from a wall's edge"); a blended part's inside its edge blend.
+constexpr double kWallMarginMm = 2;
+
+// Vertical deviation of the fitted surface from the true one, over the part's top.
 void surface_figures(Report& r, const synth::HeightField& h, const BSplineSurface& s, const Bounds& b) {
+  const double margin = h.walled() ? kWallMarginMm : h.edge_blend_mm;
   const double u0 = s.knots_u[s.degree_u], u1 = s.knots_u[s.num_poles_u];
   const double v0 = s.knots_v[s.degree_v], v1 = s.knots_v[s.num_poles_v];
   double sum = 0, max = 0;
@@ -190,8 +196,8 @@ void surface_figures(Report& r, const synth::HeightField& h, const BSplineSurfac
   for (int i = 0; i <= 100; ++i) {
     for (int j = 0; j <= 100; ++j) {
       const Eigen::Vector3d p = surface_point(s, u0 + (u1 - u0) * i / 100, v0 + (v1 - v0) * j / 100);
-      if (p.x() < h.x_min_mm + h.edge_blend_mm || p.x() > h.x_max_mm - h.edge_blend_mm ||
-          p.y() < h.y_min_mm + h.edge_blend_mm || p.y() > h.y_max_mm - h.edge_blend_mm) {
+      if (p.x() < h.x_min_mm + margin || p.x() > h.x_max_mm - margin || p.y() < h.y_min_mm + margin ||
+          p.y() > h.y_max_mm - margin) {
         continue;
       }
       const double e = std::abs(p.z() - h.height_mm(p.x(), p.y()));
@@ -204,33 +210,141 @@ void surface_figures(Report& r, const synth::HeightField& h, const BSplineSurfac
     }
   }
   if (n) log::debug("surface deviation max at (" + format_double(at_max.x()) + ", " + format_double(at_max.y()) + ")");
+  if (h.walled()) {
+    // Within the margin of the walls (not judged): the worst deviation there, inside the fit's outline.
+    double edge_max = 0, band_max[4] = {0, 0, 0, 0};
+    Eigen::Vector3d edge_at = Eigen::Vector3d::Zero();
+    for (int i = 0; i <= 400; ++i) {
+      for (int j = 0; j <= 400; ++j) {
+        const double u = u0 + (u1 - u0) * i / 400, v = v0 + (v1 - v0) * j / 400;
+        if (!s.boundary_uv.empty() && !fitsurf::point_in_polygon(s.boundary_uv, {u, v})) continue;
+        const Eigen::Vector3d p = surface_point(s, u, v);
+        if (!h.contains(p.x(), p.y())) continue;
+        const double e = std::abs(p.z() - h.height_mm(p.x(), p.y()));
+        const double inset = std::min({p.x() - h.x_min_mm, h.x_max_mm - p.x(), p.y() - h.y_min_mm, h.y_max_mm - p.y()});
+        const int band = std::min(3, static_cast<int>(inset / 0.5));
+        band_max[band] = std::max(band_max[band], e);
+        if (e > edge_max) {
+          edge_max = e;
+          edge_at = p;
+        }
+      }
+    }
+    log::debug("surface deviation max inside the outline, up to the walls: " + format_double(edge_max) + " mm at (" +
+               format_double(edge_at.x()) + ", " + format_double(edge_at.y()) + "); within 0-0.5, 0.5-1, 1-1.5 mm of them and beyond: " +
+               format_double(band_max[0]) + ", " + format_double(band_max[1]) + ", " + format_double(band_max[2]) + ", " +
+               format_double(band_max[3]) + " mm");
+  }
   r.line("surface deviation RMS", n ? std::sqrt(sum / n) : NAN, "mm", b.surface_rms_mm);
   r.line("surface deviation max", n ? max : NAN, "mm", b.surface_max_mm);
 }
 
-// Distance from c to the true surface z = h(x, y) (h = 0 on the plate around the part): the
-// nearest of a 0.1 mm grid of surface points over |x - c.x|, |y - c.y| <= reach. The grid can only
-// overestimate the distance: by about t^2 / (2 R), t the offset of the nearest grid point along
-// the surface (at most 0.07 mm times sqrt(1 + slope^2)), a few micrometres for R = 3 mm.
+// Distance from c to the true part, the solid z <= h(x, y) (h = 0 on the plate around the part;
+// a walled part's sides included): the least over the columns (x, y) of a 0.1 mm grid over
+// |x - c.x|, |y - c.y| <= reach, and over the columns on a wall's line, of
+//   sqrt((x - c.x)^2 + (y - c.y)^2 + max(0, c.z - h(x, y))^2),
+// the distance from c to the column's nearest point. The grid can only overestimate the distance:
+// by about t^2 / (2 R), t the offset of the nearest grid point along the surface (at most 0.07 mm
+// times sqrt(1 + slope^2)), a few micrometres for R = 3 mm; a wall's line is sampled exactly.
 double distance_to_truth(const synth::HeightField& h, const Eigen::Vector3d& c, double reach) {
-  double d = INFINITY;
-  for (double dx = -reach; dx <= reach; dx += 0.1) {
-    for (double dy = -reach; dy <= reach; dy += 0.1) {
-      const double x = c.x() + dx, y = c.y() + dy;
-      d = std::min(d, (c - Eigen::Vector3d(x, y, h.height_mm(x, y))).norm());
+  std::vector<double> xs, ys;
+  for (double dx = -reach; dx <= reach; dx += 0.1) xs.push_back(c.x() + dx);
+  for (double dy = -reach; dy <= reach; dy += 0.1) ys.push_back(c.y() + dy);
+  if (h.walled()) {
+    for (double x : {h.x_min_mm, h.x_max_mm}) {
+      if (std::abs(x - c.x()) <= reach) xs.push_back(x);
+    }
+    for (double y : {h.y_min_mm, h.y_max_mm}) {
+      if (std::abs(y - c.y()) <= reach) ys.push_back(y);
     }
   }
-  return d;
+  double d2 = INFINITY;
+  for (double x : xs) {
+    for (double y : ys) {
+      const double above = std::max(0.0, c.z() - h.height_mm(x, y));
+      d2 = std::min(d2, (x - c.x()) * (x - c.x()) + (y - c.y()) * (y - c.y()) + above * above);
+    }
+  }
+  return std::sqrt(d2);
 }
 
-// For each feed move the ball centre is tip + R axis; its distance d to the true surface gives
-// gouge R - d > 0 and excess material d - R > 0. Every feed move over the plate counts, not only
-// those over the part: a path that cuts into the plate around the part gouges too (the fitted
-// surface's corners extrapolated below z = 0 did, by 0.85 mm, in the demo's scan chain).
+// The part's top, where the surface and the material left are judged: inside a blended part's
+// edge blend, more than kWallMarginMm inside a walled part's walls.
+bool on_judged_top(const synth::HeightField& h, double x, double y) {
+  const double margin = h.walled() ? kWallMarginMm : h.edge_blend_mm;
+  return x >= h.x_min_mm + margin && x <= h.x_max_mm - margin && y >= h.y_min_mm + margin && y <= h.y_max_mm - margin;
+}
+
+// Material left on the part's top by a ball end mill of radius R: a z-map (Anderson 1978, the
+// "z-buffer" of CAM verification) on a kZmapCellMm grid over the judged top holds the lowest
+// point of the ball over each cell, cz - sqrt(R^2 - d^2) for every ball centre within R in x, y;
+// the centres are the feed moves' sampled every kZmapStepMm along each segment. Excess at a cell =
+// that height - h (infinite where no ball passed). Returns the 0.95 quantile and the maximum.
+constexpr double kZmapCellMm = 0.25, kZmapStepMm = 0.1;
+std::pair<double, double> material_left(const synth::HeightField& h, const ClData& cl, double R,
+                                        Eigen::Vector2d& at_max) {
+  const double margin = h.walled() ? kWallMarginMm : h.edge_blend_mm;
+  const double x0 = h.x_min_mm + margin, y0 = h.y_min_mm + margin;
+  const int nx = static_cast<int>((h.x_max_mm - margin - x0) / kZmapCellMm) + 1;
+  const int ny = static_cast<int>((h.y_max_mm - margin - y0) / kZmapCellMm) + 1;
+  if (nx <= 0 || ny <= 0) return {NAN, NAN};
+  std::vector<double> low(static_cast<std::size_t>(nx) * ny, INFINITY);
+  auto stamp = [&](const Eigen::Vector3d& c) {
+    const int i0 = std::max(0, static_cast<int>(std::ceil((c.x() - R - x0) / kZmapCellMm)));
+    const int i1 = std::min(nx - 1, static_cast<int>(std::floor((c.x() + R - x0) / kZmapCellMm)));
+    const int j0 = std::max(0, static_cast<int>(std::ceil((c.y() - R - y0) / kZmapCellMm)));
+    const int j1 = std::min(ny - 1, static_cast<int>(std::floor((c.y() + R - y0) / kZmapCellMm)));
+    for (int j = j0; j <= j1; ++j) {
+      const double dy = y0 + j * kZmapCellMm - c.y();
+      for (int i = i0; i <= i1; ++i) {
+        const double dx = x0 + i * kZmapCellMm - c.x();
+        const double d2 = dx * dx + dy * dy;
+        if (d2 > R * R) continue;
+        double& z = low[static_cast<std::size_t>(j) * nx + i];
+        z = std::min(z, c.z() - std::sqrt(R * R - d2));
+      }
+    }
+  };
+  std::optional<Eigen::Vector3d> previous;
+  for (const ClMove& m : cl.moves) {
+    const Eigen::Vector3d c = m.tip_mm + R * m.axis.value_or(Eigen::Vector3d::UnitZ());
+    if (m.kind == ClMove::Kind::Feed && previous) {
+      const int steps = std::max(1, static_cast<int>(std::ceil((c - *previous).norm() / kZmapStepMm)));
+      for (int k = 1; k <= steps; ++k) stamp(*previous + (c - *previous) * (static_cast<double>(k) / steps));
+    } else if (m.kind == ClMove::Kind::Feed) {
+      stamp(c);
+    }
+    previous = c;
+  }
+  std::vector<double> excess;
+  double max = -INFINITY;
+  for (int j = 0; j < ny; ++j) {
+    for (int i = 0; i < nx; ++i) {
+      const double x = x0 + i * kZmapCellMm, y = y0 + j * kZmapCellMm;
+      if (!on_judged_top(h, x, y)) continue;
+      const double e = low[static_cast<std::size_t>(j) * nx + i] - h.height_mm(x, y);
+      excess.push_back(e);
+      if (e > max) {
+        max = e;
+        at_max = {x, y};
+      }
+    }
+  }
+  if (excess.empty()) return {NAN, NAN};
+  const auto at = excess.begin() + static_cast<std::ptrdiff_t>(0.95 * static_cast<double>(excess.size() - 1));
+  std::nth_element(excess.begin(), at, excess.end());
+  return {*at, max};
+}
+
+// For each feed move the ball centre is tip + R axis; its distance d to the true part gives
+// gouge R - d > 0. Every feed move over the plate counts, not only those over the part: a path
+// that cuts into the plate around the part gouges too (the fitted surface's corners extrapolated
+// below z = 0 did, by 0.85 mm, in the demo's scan chain). The material left over the part's top
+// comes from the z-map (material_left).
 void toolpath_figures(Report& r, const synth::PartScene& scene, const ClData& cl, const Bounds& b) {
   const synth::HeightField& h = scene.surface;
   const double R = cl.tool_diameter_mm / 2;
-  double gouge = 0, excess = 0;
+  double gouge = 0;
   Eigen::Vector3d at_gouge = Eigen::Vector3d::Zero();
   for (const ClMove& m : cl.moves) {
     if (m.kind != ClMove::Kind::Feed || !(R > 0)) continue;
@@ -244,14 +358,17 @@ void toolpath_figures(Report& r, const synth::PartScene& scene, const ClData& cl
       gouge = R - d;
       at_gouge = m.tip_mm;
     }
-    excess = std::max(excess, d - R);
   }
   if (gouge > 0) {
     log::debug("tool path gouge max at tip (" + format_double(at_gouge.x()) + ", " + format_double(at_gouge.y()) + ", " +
                format_double(at_gouge.z()) + ")");
   }
+  Eigen::Vector2d at_excess = Eigen::Vector2d::Zero();
+  const auto [p95, max] = R > 0 ? material_left(h, cl, R, at_excess) : std::pair<double, double>{NAN, NAN};
+  log::debug("tool path excess material max at (" + format_double(at_excess.x()) + ", " + format_double(at_excess.y()) + ")");
   r.line("tool path gouge max", gouge, "mm", b.gouge_mm);
-  r.line("tool path excess material max", excess, "mm", b.excess_mm);
+  r.line("tool path excess material p95", p95, "mm", b.excess_p95_mm);
+  r.line("tool path excess material max", max, "mm", b.excess_mm);
 }
 
 // Every figure that the outputs in `out` allow, against the truth in `set`; a stage listed in
@@ -290,6 +407,7 @@ void evaluate(const fs::path& set, const fs::path& out, std::map<std::string, st
   }
   if (const auto w = why("toolpath", out / "path.cl"); !w.empty()) {
     report.missing("tool path gouge max", w);
+    report.missing("tool path excess material p95", w);
     report.missing("tool path excess material max", w);
   } else {
     toolpath_figures(report, scene, read<ClData>(out / "path.cl", read_cl), bounds);
@@ -350,6 +468,7 @@ int main(int argc, char** argv) {
   std::string bin_dir = PHOTOMILL_BIN_DIR, work_dir, truth_dir, outputs_dir, until;
   bool small = false;
   Bounds bounds;
+  synth::SynthOptions scene_options;  // the scene --work-dir renders: shape, walls, seed
   std::vector<std::string> expect_fail;
   return tool::run(
       argc, argv,
@@ -360,6 +479,13 @@ int main(int argc, char** argv) {
         auto* work = app.add_option("--work-dir", work_dir,
                                     "Render a scene into DIR/set, run the pipeline into DIR/pipeline (both replaced)");
         app.add_flag("--small", small, "A small scene (800x600, 6 + 8 views) for ctest");
+        app.add_option("--shape", scene_options.shape, "The part's shape (with --work-dir)")
+            ->check(CLI::IsMember(synth::shape_names()))->capture_default_str()->needs(work);
+        app.add_option("--edge-blend-mm", scene_options.edge_blend_mm,
+                       "The ramp from the plate up to the part; 0: vertical walls (with --work-dir)")
+            ->check(CLI::NonNegativeNumber)->capture_default_str()->needs(work);
+        app.add_option("--seed", scene_options.seed, "Seed of the scene's random choices (with --work-dir)")
+            ->capture_default_str()->needs(work);
         app.add_option("--until", until, "Run the stages up to this one only; later figures are reported as not run")
             ->check(CLI::IsMember(stage_order()))
             ->needs(work);
@@ -388,7 +514,7 @@ int main(int argc, char** argv) {
           fs::remove_all(set);
           fs::remove_all(out);
           fs::create_directories(out);
-          synth::SynthOptions o;
+          synth::SynthOptions o = scene_options;
           o.camera.image_width_px = small ? 800 : 2000;
           o.camera.image_height_px = small ? 600 : 1500;
           const double f = small ? 960 : 2400;

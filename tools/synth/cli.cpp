@@ -18,7 +18,7 @@ void add_options(CLI::App& app, SynthCli& c) {
   app.add_option("--part-x-mm", o.part_x_mm, "Part length along x")->check(CLI::PositiveNumber)->capture_default_str()->group(part);
   app.add_option("--part-y-mm", o.part_y_mm, "Part width along y")->check(CLI::PositiveNumber)->capture_default_str()->group(part);
   app.add_option("--part-height-mm", o.part_height_mm, "Highest point of the part")->check(CLI::PositiveNumber)->capture_default_str()->group(part);
-  app.add_option("--edge-blend-mm", o.edge_blend_mm, "Width of the ramp from the plate up to the part")->check(CLI::PositiveNumber)->capture_default_str()->group(part);
+  app.add_option("--edge-blend-mm", o.edge_blend_mm, "Width of the ramp from the plate up to the part (0: vertical walls)")->check(CLI::NonNegativeNumber)->capture_default_str()->group(part);
   app.add_option("--dictionary", o.dictionary, "ArUco dictionary of the plate and part markers")
       ->check(CLI::IsMember(dictionary_names()))->capture_default_str()->group(part);
   app.add_option("--plate-marker-mm", o.layout.plate_marker_mm, "Side of the plate markers (black border included)")->check(CLI::PositiveNumber)->capture_default_str()->group(part);

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 
@@ -101,7 +102,31 @@ ShapeTerm::Kind shape_term_kind(const std::string& name) {
   throw std::invalid_argument("unknown shape term '" + name + "' (expected gauss, wave or saddle)");
 }
 
+namespace {
+
+// f and grad f of the field (without the window).
+double shape_value(const HeightField& h, double x, double y, Eigen::Vector2d& df) {
+  double f = h.base_mm;
+  df.setZero();
+  for (const ShapeTerm& t : h.terms) {
+    Eigen::Vector2d g;
+    f += term_value(t, x, y, g);
+    df += g;
+  }
+  return f;
+}
+
+}  // namespace
+
 double HeightField::evaluate(double x, double y, Eigen::Vector2d& grad) const {
+  if (walled()) {
+    // The closed rectangle: a point on the edge is on the top (the wall's upper rim).
+    if (x < x_min_mm || x > x_max_mm || y < y_min_mm || y > y_max_mm) {
+      grad.setZero();
+      return 0;
+    }
+    return shape_value(*this, x, y, grad);
+  }
   if (!contains(x, y)) {
     grad.setZero();
     return 0;
@@ -109,16 +134,16 @@ double HeightField::evaluate(double x, double y, Eigen::Vector2d& grad) const {
   double wx, dwx, wy, dwy;
   window_1d(x, x_min_mm, x_max_mm, edge_blend_mm, wx, dwx);
   window_1d(y, y_min_mm, y_max_mm, edge_blend_mm, wy, dwy);
-  double f = base_mm;
-  Eigen::Vector2d df = Eigen::Vector2d::Zero();
-  for (const ShapeTerm& t : terms) {
-    Eigen::Vector2d g;
-    f += term_value(t, x, y, g);
-    df += g;
-  }
+  Eigen::Vector2d df;
+  const double f = shape_value(*this, x, y, df);
   const double w = wx * wy;
   grad = {dwx * wy * f + w * df.x(), wx * dwy * f + w * df.y()};
   return w * f;
+}
+
+double HeightField::wall_top_mm(double x, double y) const {
+  Eigen::Vector2d df;
+  return shape_value(*this, std::clamp(x, x_min_mm, x_max_mm), std::clamp(y, y_min_mm, y_max_mm), df);
 }
 
 double HeightField::height_mm(double x, double y) const {
@@ -144,7 +169,7 @@ double HeightField::height_bound() const {
 }
 
 // |grad(w f)| <= |grad w| max|f| + max|grad f|, with
-//   |grad w| <= sqrt(2) * 1.875 / b,
+//   |grad w| <= sqrt(2) * 1.875 / b (0 for a walled part: w = 1 on its top),
 //   Gauss:  |grad| <= |a| e^(-1/2) / min(s1, s2),
 //   Wave:   |grad| <= |a| sqrt(kx^2 + ky^2),
 //   Saddle: |grad| <= |a| sqrt(1/s1^2 + 1/s2^2).
@@ -163,20 +188,22 @@ double HeightField::slope_bound() const {
       case ShapeTerm::Kind::Saddle: df += a * std::hypot(1 / t.s1_mm, 1 / t.s2_mm); break;
     }
   }
+  if (walled()) return df;
   return std::sqrt(2.0) * kSmoothMaxSlope / edge_blend_mm * height_bound() + df;
 }
 
 // ||H(w f)|| <= max|f| ||H w|| + 2 |grad w| |grad f| + ||H f||, each factor bounded in closed
 // form (Frobenius norms bound the spectral norm):
-//   ||H w||  <= sqrt(2 (S''max / b^2)^2 + 2 (S'max / b)^4),
+//   ||H w||  <= sqrt(2 (S''max / b^2)^2 + 2 (S'max / b)^4)   (0 for a walled part),
 //   Gauss:  ||H|| <= |a| / min(s1, s2)^2   (eigenvalues of (uu^T - I) e^(-|u|^2/2) are <= 1),
 //   Wave:   ||H|| <= |a| (kx^2 + ky^2),
 //   Saddle: ||H|| <= |a| sqrt(c^2/s1^4 + 2/(s1 s2)^2 + c^2/s2^4), c = max|tanh''|.
 double HeightField::curvature_bound() const {
   const double b = edge_blend_mm;
-  const double hw = std::sqrt(2 * std::pow(kSmoothMaxCurvature / (b * b), 2) +
-                              2 * std::pow(kSmoothMaxSlope / b, 4));
-  const double gw = std::sqrt(2.0) * kSmoothMaxSlope / b;
+  const double hw = walled() ? 0.0
+                             : std::sqrt(2 * std::pow(kSmoothMaxCurvature / (b * b), 2) +
+                                         2 * std::pow(kSmoothMaxSlope / b, 4));
+  const double gw = walled() ? 0.0 : std::sqrt(2.0) * kSmoothMaxSlope / b;
   double gf = 0, hf = 0;
   for (const ShapeTerm& t : terms) {
     const double a = std::abs(t.amplitude_mm);
@@ -217,9 +244,9 @@ void validate(const HeightField& f) {
     throw std::invalid_argument("height field: empty part rectangle");
   }
   const double half = 0.5 * std::min(f.x_max_mm - f.x_min_mm, f.y_max_mm - f.y_min_mm);
-  if (!(f.edge_blend_mm > 0) || f.edge_blend_mm > half) {
-    throw std::invalid_argument("height field: edge blend must be in (0, " + std::to_string(half) +
-                                "] mm");
+  if (!(f.edge_blend_mm >= 0) || f.edge_blend_mm > half) {
+    throw std::invalid_argument("height field: edge blend must be 0 (walls) or in (0, " +
+                                std::to_string(half) + "] mm");
   }
   for (const ShapeTerm& t : f.terms) {
     if (!finite(t.amplitude_mm) || !finite(t.x0_mm) || !finite(t.y0_mm) || !finite(t.s1_mm) ||
@@ -282,6 +309,17 @@ HeightField make_shape(const std::string& name, double lx, double ly, double hei
   const double k = height_mm / top;
   f.base_mm *= k;
   for (ShapeTerm& t : f.terms) t.amplitude_mm *= k;
+  if (f.walled()) {
+    // A walled part's top must stand above the plate everywhere (its walls' height > 0).
+    double low = std::numeric_limits<double>::infinity();
+    for (int i = 0; i <= n; ++i) {
+      for (int j = 0; j <= n; ++j) low = std::min(low, f.height_mm(f.x_min_mm + lx * i / n, f.y_min_mm + ly * j / n));
+    }
+    if (!(low > 0)) {
+      throw std::invalid_argument("shape '" + name + "' with walls dips to " + std::to_string(low) +
+                                  " mm, not above the plate");
+    }
+  }
   return f;
 }
 

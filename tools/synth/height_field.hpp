@@ -35,12 +35,14 @@ ShapeTerm::Kind shape_term_kind(const std::string& name);
 //   w = S(dx / b) * S(dy / b), dx, dy = distance to the nearest x and y edge, b = edge blend,
 //   S(t) = 6t^5 - 15t^4 + 10t^3 for 0 <= t <= 1 (1 beyond): C2, so h is C2 on the whole plane
 // and meets the plate (z = 0) tangentially along the rectangle's edge.
+// b = 0 makes a walled part: h = f on the closed rectangle, 0 outside, so the part ends in
+// vertical walls from the plate up to f along the rectangle's edge (f must be positive there).
 struct HeightField {
   double x_min_mm = -75;
   double x_max_mm = 75;
   double y_min_mm = -50;
   double y_max_mm = 50;
-  double edge_blend_mm = 20;  // b, > 0 and <= half the smaller side
+  double edge_blend_mm = 20;  // b, 0 (walls) or > 0 and <= half the smaller side
   double base_mm = 0;         // constant term of f
   std::vector<ShapeTerm> terms;
   bool operator==(const HeightField&) const = default;
@@ -48,6 +50,10 @@ struct HeightField {
   bool contains(double x, double y) const {
     return x > x_min_mm && x < x_max_mm && y > y_min_mm && y < y_max_mm;
   }
+  // Vertical walls along the rectangle's edge (b = 0).
+  bool walled() const { return edge_blend_mm == 0; }
+  // f at the point of the closed rectangle nearest (x, y): the height of the top at a wall.
+  double wall_top_mm(double x, double y) const;
   double height_mm(double x, double y) const;
   // dh/dx, dh/dy (dimensionless).
   Eigen::Vector2d gradient(double x, double y) const;
@@ -65,11 +71,13 @@ struct HeightField {
 };
 
 // Throws std::invalid_argument with a readable message if the field is not usable (non-finite
-// numbers, empty rectangle, blend too wide, non-positive scales).
+// numbers, empty rectangle, blend negative or too wide, non-positive scales).
 void validate(const HeightField& field);
 
 // Named shapes over a rectangle of the given size centred at the origin, scaled so that the
-// highest point is `height_mm` (20-40 mm in the issue; anything positive works).
+// highest point is `height_mm` (20-40 mm in the issue; anything positive works). With
+// edge_blend_mm = 0 the part is walled; make_shape throws if its top is not above the plate
+// everywhere (a wall of zero height).
 //   bumps:  four Gaussian bumps of different sizes on a low base
 //   saddle: a tanh saddle on a base, with a gentle bump
 //   wave:   a diagonal cosine wave on a base

@@ -1,4 +1,5 @@
 // The height field against finite differences, its bounds against sampling, the shapes' sizes.
+#include <array>
 #include <cmath>
 
 #include <gtest/gtest.h>
@@ -78,6 +79,41 @@ TEST_P(Shape, IsNotALowDegreePolynomial) {
   EXPECT_GT(*hi - *lo, 0.05);
 }
 
+// A walled part (edge blend 0): its top is the shape itself up to the rectangle's edge, where
+// vertical walls drop to the plate; the bounds hold for the top.
+TEST_P(Shape, WalledPartStandsOnWallsAboveThePlate) {
+  const HeightField f = make_shape(GetParam(), 150, 100, 30, 0);
+  ASSERT_TRUE(f.walled());
+  double max_slope = 0, max_h = 0, min_h = INFINITY;
+  Rng rng(5);
+  const double h = 1e-5;
+  for (double x = -75; x <= 75; x += 0.5) {
+    for (double y = -50; y <= 50; y += 0.5) {
+      max_h = std::max(max_h, f.height_mm(x, y));
+      min_h = std::min(min_h, f.height_mm(x, y));
+      max_slope = std::max(max_slope, f.gradient(x, y).norm());
+    }
+  }
+  EXPECT_NEAR(max_h, 30, 0.05);
+  EXPECT_GT(min_h, 0);
+  EXPECT_GE(f.slope_bound(), max_slope);
+  EXPECT_LT(f.slope_bound(), 6 * max_slope);
+  for (int k = 0; k < 500; ++k) {
+    const double x = rng.uniform(-74.9, 74.9), y = rng.uniform(-49.9, 49.9);
+    const Eigen::Vector2d g = f.gradient(x, y);
+    EXPECT_NEAR(g.x(), (f.height_mm(x + h, y) - f.height_mm(x - h, y)) / (2 * h), 1e-6);
+    EXPECT_NEAR(g.y(), (f.height_mm(x, y + h) - f.height_mm(x, y - h)) / (2 * h), 1e-6);
+  }
+  // The wall: the rim's height on the edge, the plate just outside it.
+  for (const auto& [x, y, ox, oy] : {std::array<double, 4>{-75, 12, -75.001, 12}, {75, -3, 75.001, -3},
+                                     {20, 50, 20, 50.001}, {-33, -50, -33, -50.001}}) {
+    EXPECT_GT(f.height_mm(x, y), 0) << x << ", " << y;
+    EXPECT_EQ(f.wall_top_mm(x, y), f.height_mm(x, y));
+    EXPECT_EQ(f.wall_top_mm(ox, oy), f.height_mm(x, y));
+    EXPECT_EQ(f.height_mm(ox, oy), 0);
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(All, Shape, ::testing::ValuesIn(shape_names()));
 
 TEST(HeightField, ValidateRejectsBadFields) {
@@ -96,6 +132,9 @@ TEST(HeightField, ValidateRejectsBadFields) {
   nan.base_mm = std::nan("");
   EXPECT_THROW(validate(nan), std::invalid_argument);
   EXPECT_THROW(make_shape("cube", 150, 100, 30, 20), std::invalid_argument);
+  HeightField negative = f;
+  negative.edge_blend_mm = -1;
+  EXPECT_THROW(validate(negative), std::invalid_argument);
 }
 
 }  // namespace

@@ -109,6 +109,19 @@ std::optional<Hit> PartRayScene::trace(const Eigen::Vector3d& o, const Eigen::Ve
   if (intersect_box(o, d, {f.x_min_mm, f.y_min_mm, z_min_}, {f.x_max_mm, f.y_max_mm, z_max_}, ta,
                     tb)) {
     ta = std::max(ta, 0.0);
+    if (ta <= tb && ta < t_plane && f.walled()) {
+      // Entering through a side below the top's rim: the wall (never through the top, z_max_ is
+      // above every f, nor the bottom, at the plate).
+      const Eigen::Vector3d p = o + ta * d;
+      if (p.z() < f.wall_top_mm(p.x(), p.y())) {
+        const double gaps[4] = {std::abs(p.x() - f.x_min_mm), std::abs(p.x() - f.x_max_mm),
+                                std::abs(p.y() - f.y_min_mm), std::abs(p.y() - f.y_max_mm)};
+        const Eigen::Vector3d outward[4] = {-Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitX(),
+                                            -Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitY()};
+        const auto side = std::min_element(gaps, gaps + 4) - gaps;
+        return Hit{ta, p, outward[side], true};
+      }
+    }
     if (ta <= tb && ta < t_plane) {
       if (auto hit = march(o, d, ta, std::min(tb, t_plane))) return hit;
     }
@@ -118,6 +131,14 @@ std::optional<Hit> PartRayScene::trace(const Eigen::Vector3d& o, const Eigen::Ve
 }
 
 double PartRayScene::albedo(const Hit& hit, double footprint_mm) const {
+  if (hit.wall) {
+    // The wall's own speckle, unrolled: along the side (x or y) and up (z); each side elsewhere
+    // in the pattern so opposite walls do not repeat each other.
+    const Eigen::Vector3d& n = hit.normal;
+    const double along = n.x() != 0 ? hit.point_mm.y() : hit.point_mm.x();
+    const double side = 2 * n.x() + n.y();  // -2, 2, -1, 1
+    return texture_.wall_albedo(along + 1000 * side, hit.point_mm.z(), footprint_mm);
+  }
   return texture_.albedo(hit.point_mm.x(), hit.point_mm.y(), footprint_mm);
 }
 

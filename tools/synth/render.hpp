@@ -21,6 +21,7 @@ struct Hit {
   double t_mm = 0;              // distance along the (unit) ray
   Eigen::Vector3d point_mm;     // world
   Eigen::Vector3d normal;       // unit, world
+  bool wall = false;            // on a walled part's vertical side (normal horizontal)
 };
 
 // Something rays can be cast against.
@@ -48,6 +49,8 @@ struct TraceOptions {
 //   quadratic:  the first root of g + g' s - K s^2 / 2,        K >= |d_xy|^2 ||Hessian h||
 // and steps by the larger; the quadratic bound makes the last steps converge quadratically
 // (a Newton step that can never overshoot), so no bisection is needed and no hit is missed.
+// A walled part's sides are the faces of the box around its rectangle below the top: a ray that
+// enters that box through a side below f hits the wall there.
 class PartRayScene : public RayScene {
 public:
   explicit PartRayScene(const PartScene& scene, TraceOptions options = {});

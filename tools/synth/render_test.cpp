@@ -277,11 +277,17 @@ TEST(Render, DeterministicForASeedWhateverTheThreadCount) {
   EXPECT_FALSE(part_view_poses(o2) == part_view_poses(o));
 }
 
-TEST(Render, RayCasterAgreesWithBruteForceSearch) {
+class RayCaster : public ::testing::TestWithParam<double> {};
+
+// Blended (edge blend 20 mm) and walled (0) parts; on the walled one a ray meeting a side below its
+// rim hits the wall, which the brute force finds as the jump of h at the rectangle's edge.
+TEST_P(RayCaster, AgreesWithBruteForceSearch) {
   const SynthOptions o = test::small_options();
+  int wall_hits = 0;
   for (const std::string& shape : shape_names()) {
     SynthOptions os = o;
     os.shape = shape;
+    os.edge_blend_mm = GetParam();
     const PartScene scene = make_part_scene(os);
     const PartRayScene rays(scene);
     Rng rng(11);
@@ -314,10 +320,31 @@ TEST(Render, RayCasterAgreesWithBruteForceSearch) {
       ASSERT_EQ(hit.has_value(), brute.has_value()) << shape << " ray " << k;
       if (!hit) continue;
       EXPECT_NEAR(hit->t_mm, *brute, 1e-5) << shape << " ray " << k;
-      EXPECT_NEAR(hit->point_mm.z(), scene.surface.height_mm(hit->point_mm.x(), hit->point_mm.y()), 1e-6);
+      const HeightField& f = scene.surface;
+      const Eigen::Vector3d& p = hit->point_mm;
+      if (hit->wall) {
+        ++wall_hits;
+        ASSERT_TRUE(f.walled());
+        EXPECT_EQ(hit->normal.z(), 0);
+        EXPECT_LT(hit->normal.dot(d), 0) << "the wall faces the ray";
+        EXPECT_LT(std::min({std::abs(p.x() - f.x_min_mm), std::abs(p.x() - f.x_max_mm), std::abs(p.y() - f.y_min_mm),
+                            std::abs(p.y() - f.y_max_mm)}),
+                  1e-9);
+        EXPECT_GE(p.z(), 0);
+        EXPECT_LE(p.z(), f.wall_top_mm(p.x(), p.y()));
+      } else {
+        EXPECT_NEAR(p.z(), f.height_mm(p.x(), p.y()), 1e-6);
+      }
     }
   }
+  if (GetParam() == 0) {
+    EXPECT_GT(wall_hits, 20);
+  } else {
+    EXPECT_EQ(wall_hits, 0);
+  }
 }
+
+INSTANTIATE_TEST_SUITE_P(BlendedAndWalled, RayCaster, ::testing::Values(20.0, 0.0));
 
 }  // namespace
 }  // namespace photomill::synth

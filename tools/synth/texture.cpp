@@ -139,6 +139,10 @@ double PartTexture::albedo(double x, double y, double footprint_mm) const {
   return speckle(x, y, footprint_mm);
 }
 
+double PartTexture::wall_albedo(double along_mm, double z_mm, double footprint_mm) const {
+  return speckle(along_mm, z_mm + 5000, footprint_mm);
+}
+
 BoardTexture::BoardTexture(const BoardSpec& spec, Palette palette) : spec_(spec), palette_(palette) {
   validate(spec);
   const auto dict = cv::aruco::getPredefinedDictionary(dictionary_id(spec.dictionary));

@@ -42,6 +42,8 @@ public:
   explicit PartTexture(const PartScene& scene, Palette palette = {});
   // Albedo at (x, y) averaged over a square footprint of side `footprint_mm` (0: point sample).
   double albedo(double x, double y, double footprint_mm) const;
+  // Albedo of a walled part's side at (along the side, height): the same speckle, no markers.
+  double wall_albedo(double along_mm, double z_mm, double footprint_mm) const;
 
 private:
   struct Placed {
