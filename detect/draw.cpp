@@ -250,7 +250,9 @@ DrawingFiles::DrawingFiles(const DrawOptions& options, const std::vector<std::st
   validate(options_);
   std::map<std::string, std::string> by_name;
   for (const auto& image : images) {
-    const std::string name = image_name(image) + "." + options_.format;
+    // The photo's stem and the drawing's own extension: part_05.jpg -> part_05.jpg (issue 27:
+    // not part_05.jpg.jpg); two photos of one stem (a.jpg, a.png) are refused below.
+    const std::string name = fs::path(image).stem().string() + "." + options_.format;
     const auto [it, fresh] = by_name.emplace(name, image);
     if (!fresh && it->second != image) {
       throw UsageError("--draw: images '" + it->second + "' and '" + image + "' would both write " + name);
