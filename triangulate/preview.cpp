@@ -96,7 +96,8 @@ struct Panel {
   // point beyond it would spill over the axes or the next panel).
   bool fixed(const Eigen::Vector3d& p, cv::Point& out) const {
     const cv::Point2d q = px(p);
-    if (!(q.x >= area.x && q.x <= area.x + area.width && q.y >= area.y && q.y <= area.y + area.height)) return false;
+    // (2 px of slack: what frames the area lies on its edge, give or take a rounding.)
+    if (!(q.x >= area.x - 2 && q.x <= area.x + area.width + 2 && q.y >= area.y - 2 && q.y <= area.y + area.height + 2)) return false;
     out = cv::Point(cvRound(q.x * kOne), cvRound(q.y * kOne));
     return true;
   }
@@ -131,7 +132,8 @@ Panel frame_panel(const View& view, cv::Size size, const std::vector<Eigen::Vect
   return p;
 }
 
-void draw_panel(cv::Mat& img, const Panel& p, const std::vector<Eigen::Vector3d>& points,
+// Returns the number of frusta not drawn (not wholly inside the panel's area).
+std::size_t draw_panel(cv::Mat& img, const Panel& p, const std::vector<Eigen::Vector3d>& points,
                 const std::vector<cv::Scalar>& colours, const std::vector<char>& control, double radius,
                 const std::vector<Frustum>& frusta, bool with_axes) {
   img.setTo(cv::Scalar(250, 250, 250));
@@ -155,11 +157,15 @@ void draw_panel(cv::Mat& img, const Panel& p, const std::vector<Eigen::Vector3d>
                   kShift);
   }
   // Cameras.
+  std::size_t outside = 0;
   for (const Frustum& f : frusta) {
     cv::Point a, c[4];
     bool ok = p.fixed(f.apex, a);
     for (int k = 0; k < 4; ++k) ok = ok && p.fixed(f.corners[static_cast<std::size_t>(k)], c[k]);
-    if (!ok) continue;
+    if (!ok) {
+      ++outside;
+      continue;
+    }
     for (int k = 0; k < 4; ++k) {
       cv::line(img, a, c[k], kCameraInk, 1, cv::LINE_AA, kShift);
       cv::line(img, c[k], c[(k + 1) % 4], k == 0 ? kImageTop : kCameraInk, k == 0 ? 2 : 1, cv::LINE_AA, kShift);
@@ -176,7 +182,7 @@ void draw_panel(cv::Mat& img, const Panel& p, const std::vector<Eigen::Vector3d>
   text(img, p.view.title, cv::Point(10, 20), 0.5);
   if (with_axes) {
     plot::draw_axes(img, p.axes());
-    return;
+    return outside;
   }
   const cv::Point origin(45, img.rows - 40);
   const std::pair<Eigen::Vector3d, std::pair<const char*, cv::Scalar>> axes[3] = {
@@ -195,6 +201,7 @@ void draw_panel(cv::Mat& img, const Panel& p, const std::vector<Eigen::Vector3d>
     text(img, style.first, tip + cv::Point(cvRound(n.x * 10) - 4, cvRound(n.y * 10) + 4), 0.45, style.second);
   }
   plot::draw_scale_bar(img, cv::Point(img.cols - 20, img.rows - 22), p.scale, img.cols / 5, "mm");
+  return outside;
 }
 
 }  // namespace
@@ -297,12 +304,13 @@ std::vector<std::uint8_t> render_preview_png(const PointCloud& cloud, const std:
   cv::Mat img(height, width, CV_8UC3, cv::Scalar(255, 255, 255));
   const double radius = std::clamp(0.22 * std::sqrt(static_cast<double>(panel_w) * panel_h / static_cast<double>(n)), 1.2, 4.0);
   const View views[2] = {oblique_view(o.azimuth_deg, o.elevation_deg), top_view()};
+  std::size_t cut_cameras = 0;
   for (int k = 0; k < 2; ++k) {
     cv::Mat roi = img(cv::Rect(k * panel_w, 0, panel_w, panel_h));
     // The oblique view shows the whole scene, the top view the points in detail.
     // (The cameras are drawn in the oblique view only: the top view is framed on the points.)
     const Panel panel = frame_panel(views[k], roi.size(), k == 0 ? framing : points_box, k == 1);
-    draw_panel(roi, panel, points, colours, control, radius, k == 0 ? frusta : std::vector<Frustum>{}, k == 1);
+    cut_cameras += draw_panel(roi, panel, points, colours, control, radius, k == 0 ? frusta : std::vector<Frustum>{}, k == 1);
   }
 
   // Colour bar.
@@ -330,6 +338,7 @@ std::vector<std::uint8_t> render_preview_png(const PointCloud& cloud, const std:
   l1 << n << " points, " << controls << " control points (squares), " << frusta.size()
      << " cameras (frusta in the oblique view: apex at the centre, thick orange edge = top of the image)";
   if (far_cameras) l1 << "; " << far_cameras << " cameras far from the scene not drawn";
+  if (cut_cameras) l1 << "; " << cut_cameras << " cameras across the view's edge not drawn";
   l2 << "colour: " << (by_rms ? "reprojection RMS per point, px" : "uncertainty sigma per point, mm") << ", scale 0 .. "
      << format_value(vmax) << " (95th percentile " << format_value(top) << "); " << above
      << " points above it at the top colour";
