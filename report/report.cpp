@@ -99,7 +99,7 @@ figure { margin: 1em 0; } figure img { max-width: 100%; border: 1px solid #ddd; 
 figcaption { font-size: 0.9em; color: #444; }
 .drawings { display: grid; grid-template-columns: repeat(auto-fill, minmax(360px, 1fr)); gap: 0.8em; }
 .missing { color: #a40; } .warning { color: #a40; }
-nav a { margin-right: 1em; }
+nav a { margin-right: 1em; } nav p { margin: 0.3em 0; }
 )";
 
 }  // namespace
@@ -247,9 +247,18 @@ std::string build_report_html(const std::string& dir, const ReportOptions& optio
   o.imbue(std::locale::classic());
   o << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>" << html(title)
     << "</title>\n<style>" << kStyle << "</style>\n</head>\n<body>\n<h1>" << html(title) << "</h1>\n";
-  o << "<nav><a href=\"#summary\">headline figures</a><a href=\"#pictures\">pictures</a>";
+  // Contents: a link to every section, picture and report.
+  o << "<nav><p><a href=\"#summary\">headline figures</a><a href=\"#pictures\">pictures</a>";
   if (!drawings.empty()) o << "<a href=\"#drawings\">drawings</a>";
-  o << "<a href=\"#figures\">every figure</a></nav>\n";
+  o << "<a href=\"#figures\">every figure</a></p>\n<p>pictures:";
+  for (const auto* list : {&pictures, &drawings}) {
+    for (const Picture& p : *list) o << " <a href=\"#" << anchor(p.path) << "\">" << html(p.path) << "</a>";
+  }
+  o << "</p>\n<p>reports:";
+  for (const KnownFile& k : known_reports()) {
+    if (reports.count(k.path)) o << " <a href=\"#" << anchor(k.path) << "\">" << html(k.path) << "</a>";
+  }
+  o << "</p></nav>\n";
 
   // Headline figures, one table, grouped by report as headlines() lists them.
   o << "<h2 id=\"summary\">Headline figures</h2>\n<table>\n<tr><th>figure</th><th>value</th><th>unit</th><th>from</th></tr>\n";

@@ -12,6 +12,7 @@
 #include <limits>
 #include <map>
 #include <regex>
+#include <set>
 #include <sstream>
 
 #include <gtest/gtest.h>
@@ -198,6 +199,14 @@ TEST(Report, HoldsEveryHeadlineFigureAndEveryPicture) {
     EXPECT_EQ(images.at(name), test::read_file(job.dir / name)) << name;
   }
   EXPECT_EQ(images.size(), 5u);
+  // The contents link every picture and every report, and every link lands on its anchor.
+  const std::regex link("href=\"#([^\"]*)\"");
+  std::set<std::string> targets;
+  for (auto it = std::sregex_iterator(page.begin(), page.end(), link); it != std::sregex_iterator(); ++it) {
+    targets.insert((*it)[1]);
+    EXPECT_NE(page.find("id=\"" + std::string((*it)[1]) + "\""), std::string::npos) << "a link to nowhere: #" << (*it)[1];
+  }
+  EXPECT_GE(targets.size(), 5u + 4u + 4u) << "pictures, reports and sections linked";
   // Self-contained: nothing fetched from elsewhere.
   EXPECT_EQ(page.find("://"), std::string::npos);
   EXPECT_EQ(page.find("<script"), std::string::npos);

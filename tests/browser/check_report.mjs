@@ -1,7 +1,8 @@
 // Opens a job's report.html in Debian's headless Chromium (through playwright-core, no browser
 // download) and checks what issue 27 asks of it: no console error, no failed or network request,
-// every picture decoded (naturalWidth > 0), and the headline figures on the page equal to the
-// values of the job's JSON reports (4 significant digits).
+// every picture decoded (naturalWidth > 0), every link of the contents landing on its anchor, and
+// the headline figures on the page equal to the values of the job's JSON reports (4 significant
+// digits).
 // Usage: node check_report.mjs REPORT.html JOB_FOLDER
 // Exit 0 ok, 1 a check failed, 77 skipped (no Chromium or playwright-core; never when CI is set).
 import { createRequire } from 'node:module';
@@ -76,6 +77,10 @@ try {
   for (const p of pictures) {
     if (!images.some((i) => i.alt === p)) problems.push(`picture not on the page: ${p}`);
   }
+  // Every link of the contents lands on its anchor.
+  const dangling = await page.evaluate(() => Array.from(document.querySelectorAll('a[href^="#"]'),
+    (a) => a.getAttribute('href').slice(1)).filter((id) => !document.getElementById(id)));
+  for (const id of dangling) problems.push(`a link to nowhere: #${id}`);
   const figures = await page.evaluate(() => Array.from(document.querySelectorAll('[data-json]'),
     (e) => [e.dataset.json, e.textContent, e.checkVisibility ? e.checkVisibility() : true]));
   const text = await page.evaluate(() => document.body.innerText);
