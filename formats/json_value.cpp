@@ -77,7 +77,7 @@ private:
         std::string key = string();
         space();
         if (!take(':')) fail("expected ':' after the key \"" + key + "\", found " + where());
-        v.object.emplace_back(std::move(key), value(depth + 1));
+        v.object.push_back({std::move(key), value(depth + 1)});
         space();
         if (take('}')) return v;
         if (!take(',')) fail("expected ',' or '}' after an object member, found " + where());

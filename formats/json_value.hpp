@@ -6,25 +6,30 @@
 #include <istream>
 #include <string>
 #include <string_view>
-#include <utility>
 #include <vector>
 
 namespace photomill {
 
 struct JsonValue {
   enum class Type { Null, Boolean, Number, String, Array, Object };
+  struct Member;  // an object's key and value (defined below: JsonValue is incomplete here)
   Type type = Type::Null;
   bool boolean = false;
   double number = 0;
   std::string string;
   std::vector<JsonValue> array;
-  std::vector<std::pair<std::string, JsonValue>> object;  // in the file's order
+  std::vector<Member> object;  // in the file's order
 
   bool is_number() const { return type == Type::Number; }
   // The member `key` of an object; null for a missing key or a value that is not an object.
   const JsonValue* find(std::string_view key) const;
   // The value at a dotted path of object keys ("residuals.rms_mm"); null if any step is missing.
   const JsonValue* at(std::string_view dotted_path) const;
+};
+
+struct JsonValue::Member {
+  std::string key;
+  JsonValue value;
 };
 
 // The deepest nesting of arrays and objects read (a hostile file cannot exhaust the stack).

@@ -43,7 +43,7 @@ TEST(JsonRead, TakesBackWhatTheWriterWrites) {
   j.end_object();
   const JsonValue v = parse_json(s.str(), "mem.json");
   ASSERT_EQ(v.type, JsonValue::Type::Object);
-  EXPECT_EQ(v.object.front().first, "tool") << "keys keep the file's order";
+  EXPECT_EQ(v.object.front().key, "tool") << "keys keep the file's order";
   EXPECT_EQ(v.find("tool")->string, "calib");
   EXPECT_EQ(v.find("rms_px")->number, awkward) << "numbers round-trip exactly";
   EXPECT_EQ(v.find("n")->number, 42);
