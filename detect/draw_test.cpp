@@ -70,6 +70,18 @@ TEST(Draw, MarkersOverTheDemoPhoto) {
     EXPECT_GT(near_colour(small, corner), static_cast<int>(m.marker_ids.size()) * 15) << "corner colour " << corner;
   }
 
+  // Rulers in photo px along the bottom and right edges: white ticks (the dimmed photo stays
+  // below 211) in the last rows and columns, numbered.
+  const auto bright = [](const cv::Mat& m) {
+    int n = 0;
+    for (int y = 0; y < m.rows; ++y) {
+      for (int x = 0; x < m.cols; ++x) n += std::min({m.at<cv::Vec3b>(y, x)[0], m.at<cv::Vec3b>(y, x)[1], m.at<cv::Vec3b>(y, x)[2]}) > 225;
+    }
+    return n;
+  };
+  EXPECT_GT(bright(small(cv::Rect(0, small.rows - 8, small.cols, 8))), 20) << "u ruler ticks";
+  EXPECT_GT(bright(small(cv::Rect(small.cols - 8, 0, 8, small.rows))), 20) << "v ruler ticks";
+
   o.max_width_px = 0;  // full size
   const cv::Mat full = draw_photo(grey, &m, nullptr, o);
   EXPECT_EQ(full.cols, grey.cols);
