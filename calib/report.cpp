@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "formats/json.hpp"
+#include "formats/plot.hpp"
 
 namespace photomill::calib {
 namespace {
@@ -194,29 +195,24 @@ void write_json_report(std::ostream& out, const CalibResult& r, const CalibOptio
 }
 
 ResidualPlot residual_plot(const CalibResult& r) {
-  ResidualPlot plot;
+  ResidualPlot out;
   const double w = r.camera.image_width_px;
   const double h = r.camera.image_height_px;
   const double canvas_scale = 1200.0 / std::max(w, h);  // the long side drawn 1200 px
-  const int margin = 40;
-  const int legend = 60;
-  const cv::Size canvas(static_cast<int>(std::lround(w * canvas_scale)) + 2 * margin,
-                        static_cast<int>(std::lround(h * canvas_scale)) + 2 * margin + legend);
+  // Room for the title and the axes' numbers and labels (image pixels, u right, v down), the legend.
+  const int left = plot::kAxisLeftPx, top = plot::kAxisTopPx + 30, right = 40, bottom = plot::kAxisBottomPx;
+  const int legend = 50;
+  const cv::Size frame(static_cast<int>(std::lround(w * canvas_scale)), static_cast<int>(std::lround(h * canvas_scale)));
+  const cv::Size canvas(frame.width + left + right, frame.height + top + bottom + legend);
   cv::Mat img(canvas, CV_8UC3, cv::Scalar(255, 255, 255));
-  auto to_canvas = [&](const Eigen::Vector2d& p) {
-    return cv::Point2d(margin + (p.x() + 0.5) * canvas_scale, margin + (p.y() + 0.5) * canvas_scale);
-  };
-  const cv::Point2d tl = to_canvas({-0.5, -0.5});
-  const cv::Point2d br = to_canvas({w - 0.5, h - 0.5});
-  for (int k = 1; k < 4; ++k) {
-    const double x = tl.x + (br.x - tl.x) * k / 4;
-    const double y = tl.y + (br.y - tl.y) * k / 4;
-    cv::line(img, {static_cast<int>(x), static_cast<int>(tl.y)}, {static_cast<int>(x), static_cast<int>(br.y)},
-             cv::Scalar(225, 225, 225));
-    cv::line(img, {static_cast<int>(tl.x), static_cast<int>(y)}, {static_cast<int>(br.x), static_cast<int>(y)},
-             cv::Scalar(225, 225, 225));
-  }
-  cv::rectangle(img, tl, br, cv::Scalar(0, 0, 0), 1);
+  // The frame spans the image's pixels from the top-left pixel's outer edge (-0.5) to the
+  // bottom-right one's (w - 0.5): OpenCV's convention puts pixel centres on integers.
+  plot::Axes axes;
+  axes.plot = cv::Rect(left, top, frame.width, frame.height);
+  axes.x0 = -0.5, axes.x1 = w - 0.5, axes.y0 = -0.5, axes.y1 = h - 0.5, axes.y_up = false;
+  axes.x_label = "u px", axes.y_label = "v px";
+  auto to_canvas = [&](const Eigen::Vector2d& p) { return axes.px(p.x(), p.y()); };
+  plot::draw_axes(img, axes, true);
   // Magnification: the 95th percentile residual of the kept views drawn ~3 % of the diagonal.
   std::vector<double> lengths;
   for (const auto& p : r.residuals) {
@@ -224,28 +220,29 @@ ResidualPlot residual_plot(const CalibResult& r) {
   }
   std::sort(lengths.begin(), lengths.end());
   const double p95 = lengths.empty() ? 1.0 : std::max(1e-6, lengths[lengths.size() * 95 / 100]);
-  const double diag = std::hypot(br.x - tl.x, br.y - tl.y);
-  plot.magnification = nice_floor(0.03 * diag / (p95 * canvas_scale));
-  plot.bar_px = nice_floor(p95);
+  const double diag = std::hypot(frame.width, frame.height);
+  out.magnification = nice_floor(0.03 * diag / (p95 * canvas_scale));
+  out.bar_px = nice_floor(p95);
   const cv::Scalar kept(160, 60, 0);      // blue (BGR)
   const cv::Scalar outlier(0, 140, 255);  // orange
   for (const auto& p : r.residuals) {
     const cv::Point2d a = to_canvas(p.observed_px);
-    const cv::Point2d b = a + cv::Point2d(p.residual_px.x(), p.residual_px.y()) * (plot.magnification * canvas_scale);
+    const cv::Point2d b = a + cv::Point2d(p.residual_px.x(), p.residual_px.y()) * (out.magnification * canvas_scale);
     const cv::Scalar colour = p.rejected_view ? outlier : kept;
     cv::line(img, a, b, colour, 1, cv::LINE_AA);
     cv::circle(img, a, 2, colour, cv::FILLED, cv::LINE_AA);
   }
+  plot::text(img, "calibration residuals over the image frame (model - observed, drawn x" +
+                       plot::number(out.magnification) + ")", {left, 22}, 0.55);
   // Legend: a bar for bar_px of residual, the magnification and the RMS.
   const int y = canvas.height - legend / 2;
-  const int bar = static_cast<int>(std::lround(plot.bar_px * plot.magnification * canvas_scale));
-  cv::line(img, {margin, y}, {margin + bar, y}, kept, 3);
-  char text[256];
-  std::snprintf(text, sizeof text, "= %g px   (residuals x%g; RMS %.3f px; rejected views in orange)", plot.bar_px,
-                plot.magnification, r.rms_px);
-  cv::putText(img, text, {margin + bar + 10, y + 6}, cv::FONT_HERSHEY_SIMPLEX, 0.55, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
-  cv::imencode(".png", img, plot.png);
-  return plot;
+  const int bar = static_cast<int>(std::lround(out.bar_px * out.magnification * canvas_scale));
+  cv::line(img, {left, y}, {left + bar, y}, kept, 3);
+  const std::string text = "= " + plot::number(out.bar_px) + " px of residual   (residuals x" + plot::number(out.magnification) +
+                           "; RMS " + plot::number(r.rms_px, 3) + " px; rejected views in orange)";
+  plot::text(img, text, {left + bar + 10, y + 6}, 0.55, cv::Scalar(0, 0, 0));
+  cv::imencode(".png", img, out.png);
+  return out;
 }
 
 }  // namespace photomill::calib

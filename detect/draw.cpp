@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "formats/error.hpp"
+#include "formats/plot.hpp"
 #include "formats/tool.hpp"
 
 namespace photomill::detect {
@@ -118,6 +119,33 @@ void legend(Canvas& c, const std::vector<Segments>& lines) {
 
 std::string image_name(const std::string& image) { return fs::path(image).filename().string(); }
 
+// Photo-pixel rulers (issue 27: a scale and its unit on every picture): ticks along the bottom
+// (u px) and right (v px) edges at round steps, numbered, "u px" / "v px" at their ends.
+void rulers(Canvas& c, int photo_w, int photo_h) {
+  const int tick = c.thick(10), t = c.thick(1);
+  const double fs = 0.4;
+  const auto mark = [&](cv::Point a, cv::Point b) {
+    cv::line(c.img, a, b, kBlack, t + 2, cv::LINE_AA);
+    cv::line(c.img, a, b, kWhite, t, cv::LINE_AA);
+  };
+  const int bottom = c.img.rows - 1, right = c.img.cols - 1;
+  for (double u : plot::ticks(0, photo_w - 1, std::max(2, c.img.cols / 200))) {
+    const int x = cvRound(c.map({u, 0}).x);
+    mark({x, bottom}, {x, bottom - tick});
+    if (u > 0) label(c, plot::number(u), cv::Point2d(x, bottom - tick - 10 * c.unit), fs, kWhite);
+  }
+  for (double v : plot::ticks(0, photo_h - 1, std::max(2, c.img.rows / 150))) {
+    const int y = cvRound(c.map({0, v}).y);
+    mark({right, y}, {right - tick, y});
+    if (v > 0) {
+      const std::string n = plot::number(v);
+      label(c, n, cv::Point2d(right - tick - (6 + 4.5 * static_cast<double>(n.size())) * c.unit, y), fs, kWhite);
+    }
+  }
+  label(c, "u px", cv::Point2d(24 * c.unit, bottom - tick - 10 * c.unit), fs, kWhite);
+  label(c, "v px", cv::Point2d(right - tick - 24 * c.unit, 12 * c.unit), fs, kWhite);
+}
+
 }  // namespace
 
 void validate(const DrawOptions& o) {
@@ -177,6 +205,7 @@ cv::Mat draw_photo(const cv::Mat& grey, const MarkerDetection* markers, const Fe
     lines.push_back({{"corners: ", kWhite}, {"0 ", kCorner[0]}, {"1 ", kCorner[1]}, {"2 ", kCorner[2]}, {"3", kCorner[3]},
                      {" (top-left, top-right, bottom-right, bottom-left of the printed marker)", kWhite}});
   }
+  rulers(c, grey.cols, grey.rows);
   legend(c, lines);
   return c.img;
 }
@@ -201,6 +230,7 @@ cv::Mat draw_board(const cv::Mat& grey, const ImageDetection& d, const BoardSpec
   const std::string kind = spec.kind == BoardKind::Chessboard ? "chessboard " : "ChArUco ";
   ImageDetection named = d;
   named.image = image_name(d.image);
+  rulers(c, grey.cols, grey.rows);
   legend(c, {{{describe(named), d.found ? kWhite : kRejected}},
              {{kind + std::to_string(spec.cols) + "x" + std::to_string(spec.rows) +
                    ": corner ids row-major, one colour per row",
@@ -220,7 +250,9 @@ DrawingFiles::DrawingFiles(const DrawOptions& options, const std::vector<std::st
   validate(options_);
   std::map<std::string, std::string> by_name;
   for (const auto& image : images) {
-    const std::string name = image_name(image) + "." + options_.format;
+    // The photo's stem and the drawing's own extension: part_05.jpg -> part_05.jpg (issue 27:
+    // not part_05.jpg.jpg); two photos of one stem (a.jpg, a.png) are refused below.
+    const std::string name = fs::path(image).stem().string() + "." + options_.format;
     const auto [it, fresh] = by_name.emplace(name, image);
     if (!fresh && it->second != image) {
       throw UsageError("--draw: images '" + it->second + "' and '" + image + "' would both write " + name);

@@ -21,7 +21,7 @@
 namespace photomill::detect {
 
 struct DrawOptions {
-  std::string dir;             // write <dir>/<image file name>.<format>; empty: no drawings
+  std::string dir;             // write <dir>/<photo's stem>.<format>; empty: no drawings
   std::string format = "jpg";  // "jpg" (small) or "png" (exact)
   int max_width_px = 1600;     // wider photos are scaled down to this width; 0: full size
   int jpeg_quality = 90;
@@ -42,7 +42,8 @@ cv::Mat draw_board(const cv::Mat& grey, const ImageDetection& detection, const B
 // Encodes a drawing as options.format (JPEG at options.jpeg_quality, or PNG).
 std::vector<std::uint8_t> encode_drawing(const cv::Mat& bgr, const DrawOptions& options);
 
-// The drawing files of one run: DIR/<image file name>.<format> per image (the folder is created).
+// The drawing files of one run: DIR/<photo's stem>.<format> per image, part_05.jpg -> part_05.jpg
+// (the folder is created).
 // write() may be called from several threads at once. Inside tool::run the files are renamed
 // into place only when the whole run succeeded: a failed run leaves the previous drawings.
 class DrawingFiles {

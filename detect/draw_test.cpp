@@ -70,6 +70,18 @@ TEST(Draw, MarkersOverTheDemoPhoto) {
     EXPECT_GT(near_colour(small, corner), static_cast<int>(m.marker_ids.size()) * 15) << "corner colour " << corner;
   }
 
+  // Rulers in photo px along the bottom and right edges: white ticks (the dimmed photo stays
+  // below 211) in the last rows and columns, numbered.
+  const auto bright = [](const cv::Mat& m) {
+    int n = 0;
+    for (int y = 0; y < m.rows; ++y) {
+      for (int x = 0; x < m.cols; ++x) n += std::min({m.at<cv::Vec3b>(y, x)[0], m.at<cv::Vec3b>(y, x)[1], m.at<cv::Vec3b>(y, x)[2]}) > 225;
+    }
+    return n;
+  };
+  EXPECT_GT(bright(small(cv::Rect(0, small.rows - 8, small.cols, 8))), 20) << "u ruler ticks";
+  EXPECT_GT(bright(small(cv::Rect(small.cols - 8, 0, 8, small.rows))), 20) << "v ruler ticks";
+
   o.max_width_px = 0;  // full size
   const cv::Mat full = draw_photo(grey, &m, nullptr, o);
   EXPECT_EQ(full.cols, grey.cols);
@@ -147,15 +159,29 @@ INSTANTIATE_TEST_SUITE_P(
         DrawCase{"markers_parallel",
                  {"--aruco", "DICT_4X4_100", "--draw", "DIR", "-j", "2", demo("part_00.jpg"), demo("part_03.jpg"),
                   demo("part_07.jpg")},
-                 {{"part_00.jpg.jpg", 1600, 1200}, {"part_03.jpg.jpg", 1600, 1200}, {"part_07.jpg.jpg", 1600, 1200}}},
+                 {{"part_00.jpg", 1600, 1200}, {"part_03.jpg", 1600, 1200}, {"part_07.jpg", 1600, 1200}}},
         DrawCase{"markers_features_png",
                  {"--aruco", "DICT_4X4_100", "--features", "FEAT", "--mask-markers", "--max-features", "500", "--draw", "DIR",
                   "--draw-format", "png", "--draw-max-width-px", "800", demo("part_05.jpg")},
-                 {{"part_05.jpg.png", 800, 600}}},
+                 {{"part_05.png", 800, 600}}},
         DrawCase{"charuco_full_size",
                  {"--charuco", "7x5", "--dict", "DICT_5X5_100", "--square-mm", "30", "--marker-mm", "22", "--draw",
                   "DIR", "--draw-max-width-px", "0", demo("board_00.jpg"), demo("board_01.jpg")},
-                 {{"board_00.jpg.jpg", 2000, 1500}, {"board_01.jpg.jpg", 2000, 1500}}}));
+                 {{"board_00.jpg", 2000, 1500}, {"board_01.jpg", 2000, 1500}}}));
+
+// A drawing is named by the photo's stem and its own extension (part_05.jpg -> part_05.jpg):
+// two photos of one stem in one run would write one file, and are refused before any work.
+TEST(Draw, TwoPhotosOfOneStemAreRefused) {
+  TempDir tmp;
+  const fs::path dir = tmp.path() / "drawings";
+  fs::copy_file(demo("part_00.jpg"), tmp.path() / "part_00.png");
+  const auto r = run_tool("detect", {"--aruco", "DICT_4X4_100", "--draw", dir.string(), demo("part_00.jpg"),
+                                     (tmp.path() / "part_00.png").string(), "-o", (tmp.path() / "out.csv").string()});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("would both write part_00.jpg"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(tmp.path() / "out.csv"));
+  EXPECT_TRUE(!fs::exists(dir) || fs::is_empty(dir));
+}
 
 // A failed run leaves no drawing: the pictures of the photos done before the failure are removed.
 struct FailCase {

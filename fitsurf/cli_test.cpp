@@ -11,6 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "fitsurf/preview.hpp"
+#include "formats/plot.hpp"
 #include "fitsurf/test_shapes.hpp"
 #include "formats/cad.hpp"
 #include "formats/point_cloud.hpp"
@@ -226,7 +227,9 @@ TEST_P(FitsurfPreview, WritesAPngOfTheExpectedSize) {
       if (v[0] > v[2] + 60) ++blue;
     }
   }
-  const double area = static_cast<double>(img.rows) * img.cols;
+  // The plot: the picture less the room of the axes, the colour bar and the legend line.
+  const double area = static_cast<double>(img.rows - plot::kAxisTopPx - plot::kAxisBottomPx - 28) *
+                      (img.cols - plot::kAxisLeftPx - plot::kColourBarAreaPx);
   EXPECT_GT(grey, 0.3 * area) << "the surface covers most of the plot";
   EXPECT_GT(red, 50u);
   EXPECT_GT(blue, 50u);

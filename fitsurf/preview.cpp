@@ -13,17 +13,17 @@
 #include "fitsurf/outline.hpp"
 #include "formats/bspline.hpp"
 #include "formats/error.hpp"
+#include "formats/plot.hpp"
 
 namespace photomill::fitsurf {
 namespace {
 
-constexpr int kMargin = 20, kBarArea = 110, kLegend = 28;
+// Room around the plot: the axes' numbers and labels (left, top, bottom), the colour bar, the
+// legend line.
+constexpr int kLeft = plot::kAxisLeftPx, kTop = plot::kAxisTopPx + 30, kBarArea = plot::kColourBarAreaPx + 10;
+constexpr int kBottom = plot::kAxisBottomPx, kLegend = 28;
 
-std::string mm(double x) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%.3g", x);
-  return b;
-}
+std::string mm(double x) { return plot::number(x, 3); }
 
 // Diverging blue - white - red (the end colours of ColorBrewer's RdBu), t in [-1, 1]; BGR.
 cv::Scalar residual_colour(double t) {
@@ -40,9 +40,9 @@ cv::Scalar residual_colour(double t) {
 
 Eigen::Vector2i preview_size_px(double extent_u_mm, double extent_v_mm, const PreviewOptions& o) {
   const int width = std::clamp(o.width_px, 400, 8000);
-  const double scale = (width - 2.0 * kMargin - kBarArea) / extent_u_mm;
+  const double scale = static_cast<double>(width - kLeft - kBarArea) / extent_u_mm;
   const int plot = std::clamp(static_cast<int>(std::ceil(extent_v_mm * scale)), 100, 8000);
-  return {width, plot + 2 * kMargin + kLegend};
+  return {width, plot + kTop + kBottom + kLegend};
 }
 
 std::vector<std::uint8_t> render_preview_png(const Result& result, const std::vector<Eigen::Vector3d>& points,
@@ -59,14 +59,22 @@ std::vector<std::uint8_t> render_preview_png(const Result& result, const std::ve
   }
   const Eigen::Vector2i size = preview_size_px(lu, lv, o);
   const int width = size.x(), height = size.y();
-  const double scale = (width - 2.0 * kMargin - kBarArea) / lu;
-  const int plot_bottom = height - kLegend - kMargin;
+  const double scale = static_cast<double>(width - kLeft - kBarArea) / lu;
+  const int plot_h = height - kTop - kBottom - kLegend;
+  const int plot_bottom = kTop + plot_h;
+  // Axes in the parameter plane's mm, equal scales: the v range is what the plot's height holds.
+  plot::Axes axes;
+  axes.plot = cv::Rect(kLeft, kTop, width - kLeft - kBarArea, plot_h);
+  axes.x0 = fit.box.t1_min, axes.x1 = fit.box.t1_min + lu;
+  axes.y0 = fit.box.t2_min, axes.y1 = fit.box.t2_min + plot_h / scale;
+  axes.x_label = "u mm", axes.y_label = "v mm";
   // Local (x, y) mm -> pixel, 16x sub-pixel (4 fractional bits), y up.
   const auto px = [&](double x, double y) {
-    return cv::Point(static_cast<int>(std::lround(((x - fit.box.t1_min) * scale + kMargin) * 16)),
-                     static_cast<int>(std::lround((plot_bottom - (y - fit.box.t2_min) * scale) * 16)));
+    const cv::Point2d q = axes.px(x, y);
+    return cv::Point(static_cast<int>(std::lround(q.x * 16)), static_cast<int>(std::lround(q.y * 16)));
   };
   cv::Mat img(height, width, CV_8UC3, cv::Scalar(255, 255, 255));
+  plot::text(img, "fitted surface seen along the fit plane's normal (u, v: mm in that plane)", {kLeft, 22}, 0.55);
 
   // The surface: grid cells inside the outline, grey by Lambert shading of the cell's normal,
   // light from the upper left and above. Seen along z: cells drawn lowest first.
@@ -129,7 +137,7 @@ std::vector<std::uint8_t> render_preview_png(const Result& result, const std::ve
   }
   std::sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) { return std::abs(d[x]) < std::abs(d[y]); });
   // Dots cover at most about a quarter of the plot, so the shading stays visible: radius 1..4 px.
-  const double plot_area = (width - 2.0 * kMargin - kBarArea) * (plot_bottom - kMargin);
+  const double plot_area = static_cast<double>(axes.plot.width) * axes.plot.height;
   const int radius = std::clamp(
       static_cast<int>(std::sqrt(0.25 * plot_area / (3.14159 * static_cast<double>(std::max<std::size_t>(1, order.size()))))), 1, 4);
   std::size_t outliers = 0;
@@ -148,25 +156,12 @@ std::vector<std::uint8_t> render_preview_png(const Result& result, const std::ve
   }
 
   // Colour bar: +R at the top, 0, -R at the bottom, in mm.
-  const int bx = width - kBarArea + 10, bw = 18, by0 = kMargin + 20, by1 = plot_bottom - 10;
-  for (int y = by0; y <= by1; ++y) {
-    const double t = 1.0 - 2.0 * (y - by0) / std::max(1, by1 - by0);
-    cv::line(img, cv::Point(bx, y), cv::Point(bx + bw, y), residual_colour(t), 1, cv::LINE_8);
-  }
-  cv::rectangle(img, cv::Point(bx, by0), cv::Point(bx + bw, by1), cv::Scalar(0, 0, 0), 1);
-  const auto label = [&](int y, const std::string& text) {
-    cv::line(img, cv::Point(bx + bw, y), cv::Point(bx + bw + 4, y), cv::Scalar(0, 0, 0), 1);
-    cv::putText(img, text, cv::Point(bx + bw + 7, y + 5), cv::FONT_HERSHEY_SIMPLEX, 0.42, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
-  };
-  // (Appended rather than "+" + mm(...): GCC 12 warns falsely (-Wrestrict) on that operator+.)
-  std::string top = "+", bottom = "-";
-  top += mm(range);
-  bottom += mm(range);
-  label(by0, top);
-  label((by0 + by1) / 2, "0");
-  label(by1, bottom);
-  cv::putText(img, "residual mm", cv::Point(bx - 8, by0 - 8), cv::FONT_HERSHEY_SIMPLEX, 0.42, cv::Scalar(0, 0, 0), 1,
-              cv::LINE_AA);
+  plot::draw_axes(img, axes);
+  plot::ColourBar bar;
+  bar.bar = cv::Rect(width - kBarArea + 24, kTop + 10, 18, std::max(40, plot_bottom - kTop - 20));
+  bar.lo = -range, bar.hi = range, bar.title = "residual", bar.unit = "mm";
+  bar.colour = [range](double v) { return residual_colour(v / range); };
+  plot::draw_colour_bar(img, bar);
 
   const ResidualStats& st = result.stats;
   std::string text = std::to_string(d.size()) + " points, " + std::to_string(s.num_poles_u) + "x" +
@@ -174,7 +169,7 @@ std::vector<std::uint8_t> render_preview_png(const Result& result, const std::ve
                      mm(st.max_abs_mm) + " mm; dots: signed residual (red above, blue below)";
   if (outliers) text += "; x: " + std::to_string(outliers) + " outliers";
   const double font = std::clamp(0.42 * width / 1100.0, 0.3, 0.6);  // the line fits the width
-  cv::putText(img, text, cv::Point(kMargin, height - 10), cv::FONT_HERSHEY_SIMPLEX, font, cv::Scalar(0, 0, 0), 1,
+  cv::putText(img, text, cv::Point(kLeft, height - 10), cv::FONT_HERSHEY_SIMPLEX, font, cv::Scalar(0, 0, 0), 1,
               cv::LINE_AA);
   std::vector<std::uint8_t> png;
   if (!cv::imencode(".png", img, png)) throw GeometryError("PNG encoding failed");

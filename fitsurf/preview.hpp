@@ -2,7 +2,8 @@
 // surface shaded by its normal (grey, lit from the upper left), trimmed to the data outline; the
 // fitted points as dots coloured by their signed residual (blue below the surface, white on it,
 // red above; the scale is symmetric, ±the 99th percentile of |residual|, beyond it saturated);
-// robust outliers as black crosses; a colour bar in mm and a line of figures. For a person to
+// robust outliers as black crosses; u and v axes in mm of the parameter plane (issue 27), a colour
+// bar in mm and a line of figures. For a person to
 // look at; nothing reads it back. Drawn like toolpath's --preview (toolpath/preview.cpp): OpenCV
 // polygons on a white canvas, 16x sub-pixel coordinates.
 #pragma once
@@ -23,7 +24,8 @@ struct PreviewOptions {
 };
 
 // The image size render_preview_png produces for a part of extent_u x extent_v mm (parameter
-// plane): width_px by the plot height (aspect ratio kept, clamped to 100..8000) plus the legend.
+// plane): width_px by the plot height (aspect ratio kept, clamped to 100..8000) plus the axes and
+// the legend.
 Eigen::Vector2i preview_size_px(double extent_u_mm, double extent_v_mm, const PreviewOptions& options = {});
 
 // Encoded PNG bytes. `points` are the fitted points in world mm, in the order of result.fit

@@ -59,7 +59,7 @@ echo "photomill demo outputs ($out):"
 for f in camera.yaml calib.png drawings observations.csv markers/cloud.ply tracks.csv cloud.ply cloud.png \
          poses.csv camera-refined.yaml surface.txt surface.step surface.png \
          path.cl path.png part.ngc scan/surface.txt scan/surface.step scan/path.cl scan/path.png \
-         scan/part.ngc cad/path.cl cad/part.ngc; do
+         scan/part.ngc cad/path.cl cad/part.ngc report.html; do
   [ -e "$out/$f" ] && printf '  %-22s %s\n' "$f" "$(du -h "$out/$f" | cut -f1)"
 done
 if [ ${#pending[@]} -gt 0 ]; then

@@ -7,6 +7,8 @@
 #     photos and plate), then synth_accuracy (a test tool of the build) against the demo's truth,
 #     the surface held to 0.05 mm RMS and every other figure to its bound (the tool-path gouge
 #     included);
+#   - the job's report.html opened in headless Chromium (tests/browser/check_report.mjs; when
+#     Chromium and playwright-core are installed, always in CI);
 #   - CloudCompare (when installed: scripts/install-deps.sh --tests) loads every per-point value of
 #     the cloud as a scalar field;
 #   - the installed Makefile's own demo data: the scan and cad goals from an empty folder write
@@ -22,7 +24,7 @@ prefix=$work/prefix
 
 # --- the install ------------------------------------------------------------------------------
 cmake --install "$build" --prefix "$prefix" >/dev/null
-tools=(calib clpost detect fitsurf match targets toolpath triangulate)
+tools=(calib clpost detect fitsurf match report targets toolpath triangulate)
 installed=$(cd "$prefix/bin" && ls | sort | tr '\n' ' ')
 [ "$installed" = "${tools[*]} " ] || fail "$prefix/bin holds '$installed', not the user tools '${tools[*]}'"
 for f in share/photomill/Makefile.example share/photomill/data/demo/part_00.jpg \
@@ -75,6 +77,21 @@ done
 out=$(sed -n 's/.*OUT=\([^ ]*\).*/\1/p' "$blocks"/*.sh | head -1)
 [ -n "$out" ] && [ -s "$work/job/$out/part.ngc" ] || fail "the walkthrough's make wrote no part.ngc (OUT=$out)"
 "$build/tools/bin/synth_accuracy" -q --truth "$src/data/demo" --outputs "$work/job/$out" --surface-rms-bound-mm 0.05
+
+# --- the job's report page (issue 27): every picture and the headline figures, in headless Chromium -----
+[ -s "$work/job/$out/report.html" ] || fail "the walkthrough's make wrote no $out/report.html"
+for d in "$work/job/$out"/drawings/*; do
+  case $(basename "$d") in *.jpg.jpg|*.jpg.png) fail "a drawing named $(basename "$d"): the photo's stem and one extension expected";; esac
+done
+if command -v node >/dev/null; then
+  rc=0
+  node "$src/tests/browser/check_report.mjs" "$work/job/$out/report.html" "$work/job/$out" || rc=$?
+  [ $rc = 0 ] || [ $rc = 77 ] || fail "the job's report.html does not pass the browser check (above)"
+elif [ -n "${CI:-}" ]; then
+  fail "node is not installed (scripts/install-deps.sh --tests installs it)"
+else
+  echo "walkthrough_test: node is not installed (scripts/install-deps.sh --tests): report.html not opened" >&2
+fi
 
 # --- a neighbour reads the cloud: CloudCompare loads every per-point value as a scalar field -------
 if command -v CloudCompare >/dev/null; then

@@ -51,7 +51,7 @@ int main(int argc, char** argv) {
         app.add_option("--part-name", o.part_name, "PARTNO in the CL data")->capture_default_str();
         app.add_option("--spindle-rpm", o.spindle_rpm, "Spindle speed written to the CL data (SPINDL)");
         app.add_flag("--coolant", o.coolant, "Coolant on during the program (COOLNT)");
-        app.add_option("--preview", preview, "Write a PNG top view of the path over the surface");
+        app.add_option("--preview", preview, "Write a PNG top view of the path: x/y in mm, coloured by height, rapids, start and end");
         app.add_option("--report", report, "Write a JSON report (statistics, gouges, verification)");
         app.add_flag("--verify", verify, "Simulate the cut on a z-map; report max scallop and deepest gouge");
         app.add_option("--zmap-cell-mm", zmap.cell_mm, "Z-map grid spacing for --verify")->capture_default_str();

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numeric>
 #include <string>
 
 #include <opencv2/imgcodecs.hpp>
@@ -10,8 +9,43 @@
 
 #include "formats/bspline.hpp"
 #include "formats/error.hpp"
+#include "formats/plot.hpp"
 
 namespace photomill::toolpath {
+namespace {
+
+// Room around the plot: the axes' numbers and labels, the colour bar, the legend line.
+constexpr int kLeft = plot::kAxisLeftPx, kTop = plot::kAxisTopPx + 30, kRight = plot::kColourBarAreaPx + 10;
+constexpr int kBottom = plot::kAxisBottomPx, kLegend = 28;
+
+cv::Scalar bgr(const Eigen::Vector3i& c) { return cv::Scalar(c[0], c[1], c[2]); }
+
+// A labelled mark: a filled disc (start) or square (end) with a white rim, its name beside it.
+void mark(cv::Mat& img, const cv::Rect& plot, cv::Point2d at, bool disc, const cv::Scalar& colour, const std::string& name) {
+  const cv::Point p(cvRound(at.x), cvRound(at.y));
+  if (disc) {
+    cv::circle(img, p, 8, cv::Scalar(255, 255, 255), cv::FILLED, cv::LINE_AA);
+    cv::circle(img, p, 6, colour, cv::FILLED, cv::LINE_AA);
+  } else {
+    cv::rectangle(img, p - cv::Point(8, 8), p + cv::Point(8, 8), cv::Scalar(255, 255, 255), cv::FILLED);
+    cv::rectangle(img, p - cv::Point(6, 6), p + cv::Point(6, 6), colour, cv::FILLED);
+  }
+  const cv::Size t = plot::text_size(name, 0.5);
+  // Beside the mark, inside the plot.
+  cv::Point org = p.x + 12 + t.width < plot.x + plot.width ? p + cv::Point(12, 5) : p + cv::Point(-12 - t.width, 5);
+  org.y = std::clamp(org.y, plot.y + t.height + 4, plot.y + plot.height - 6);
+  cv::rectangle(img, org + cv::Point(-2, 4), org + cv::Point(t.width + 2, -t.height - 3), cv::Scalar(255, 255, 255), cv::FILLED);
+  cv::putText(img, name, org, cv::FONT_HERSHEY_SIMPLEX, 0.5, colour, 1, cv::LINE_AA);
+}
+
+}  // namespace
+
+Eigen::Vector2i preview_size_px(double extent_x_mm, double extent_y_mm, const PreviewOptions& o) {
+  const int width = std::clamp(o.width_px, 400, 8000);
+  const double scale = (width - kLeft - kRight) / extent_x_mm;
+  const int plot = std::clamp(static_cast<int>(std::ceil(extent_y_mm * scale)), 100, 8000);
+  return {width, plot + kTop + kBottom + kLegend};
+}
 
 std::vector<std::uint8_t> render_preview_png(const BSplineSurface& surface, const ToolpathResult& path,
                                              const PreviewOptions& o) {
@@ -20,79 +54,100 @@ std::vector<std::uint8_t> render_preview_png(const BSplineSurface& surface, cons
   const auto [v0, v1] = domain_v(surface);
   std::vector<Eigen::Vector3d> grid(static_cast<std::size_t>((n + 1) * (n + 1)));
   Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
-  double zlo = 1e300, zhi = -1e300;
   for (int i = 0; i <= n; ++i) {
     for (int j = 0; j <= n; ++j) {
       const Eigen::Vector3d p = surface_point(surface, u0 + (u1 - u0) * i / n, v0 + (v1 - v0) * j / n);
       grid[static_cast<std::size_t>(i * (n + 1) + j)] = p;
       lo = lo.cwiseMin(p.head<2>()), hi = hi.cwiseMax(p.head<2>());
-      zlo = std::min(zlo, p.z()), zhi = std::max(zhi, p.z());
     }
   }
-  for (const ClMove& m : path.cl.moves) lo = lo.cwiseMin(m.tip_mm.head<2>()), hi = hi.cwiseMax(m.tip_mm.head<2>());
+  const auto& moves = path.cl.moves;
+  for (const ClMove& m : moves) lo = lo.cwiseMin(m.tip_mm.head<2>()), hi = hi.cwiseMax(m.tip_mm.head<2>());
   const Eigen::Vector2d ext = hi - lo;
   if (!(ext.x() > 0) || !(ext.y() > 0) || !ext.allFinite()) throw GeometryError("nothing to preview: the part has no horizontal extent");
-  const int margin = 20, legend = 28;
-  const int width = std::clamp(o.width_px, 200, 8000);
-  const double scale = (width - 2.0 * margin) / ext.x();
-  const int height = std::clamp(static_cast<int>(std::ceil(ext.y() * scale)) + 2 * margin + legend, 100, 8000);
+  const Eigen::Vector2i size = preview_size_px(ext.x(), ext.y(), o);
+  const int width = size.x(), height = size.y();
+  const double scale = static_cast<double>(width - kLeft - kRight) / ext.x();
+  const int plot_h = height - kTop - kBottom - kLegend;
+  plot::Axes axes;
+  axes.plot = cv::Rect(kLeft, kTop, width - kLeft - kRight, plot_h);
+  // Equal scales on x and y: the y range is what the plot's height holds at the x scale.
+  const double mid_y = 0.5 * (lo.y() + hi.y()), half_y = 0.5 * plot_h / scale;
+  axes.x0 = lo.x(), axes.x1 = hi.x(), axes.y0 = mid_y - half_y, axes.y1 = mid_y + half_y;
+  axes.x_label = "x mm", axes.y_label = "y mm";
   const auto px = [&](const Eigen::Vector3d& p) {
-    return cv::Point(static_cast<int>(std::lround((p.x() - lo.x()) * scale * 16 + margin * 16)),
-                     static_cast<int>(std::lround((height - legend - margin) * 16 - (p.y() - lo.y()) * scale * 16)));
+    const cv::Point2d q = axes.px(p.x(), p.y());
+    return cv::Point(cvRound(q.x * 16), cvRound(q.y * 16));
   };
   cv::Mat img(height, width, CV_8UC3, cv::Scalar(255, 255, 255));
+  plot::text(img, "tool path seen from above", {kLeft, 22}, 0.55);
 
-  // Surface cells, lowest first so that higher parts cover lower ones.
-  std::vector<int> order(static_cast<std::size_t>(n * n));
-  std::vector<double> cell_z(order.size());
+  // The surface's extent in light grey, its boundary polygon in green.
   for (int i = 0; i < n; ++i) {
     for (int j = 0; j < n; ++j) {
       const auto at = [&](int a, int b) { return grid[static_cast<std::size_t>(a * (n + 1) + b)]; };
-      cell_z[static_cast<std::size_t>(i * n + j)] = 0.25 * (at(i, j).z() + at(i + 1, j).z() + at(i, j + 1).z() + at(i + 1, j + 1).z());
+      const cv::Point quad[4] = {px(at(i, j)), px(at(i + 1, j)), px(at(i + 1, j + 1)), px(at(i, j + 1))};
+      cv::fillConvexPoly(img, quad, 4, cv::Scalar(236, 236, 236), cv::LINE_8, 4);
     }
-  }
-  std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](int a, int b) { return cell_z[static_cast<std::size_t>(a)] < cell_z[static_cast<std::size_t>(b)]; });
-  const double zr = zhi > zlo ? zhi - zlo : 1.0;
-  for (int c : order) {
-    const int i = c / n, j = c % n;
-    const auto at = [&](int a, int b) { return grid[static_cast<std::size_t>(a * (n + 1) + b)]; };
-    const cv::Point quad[4] = {px(at(i, j)), px(at(i + 1, j)), px(at(i + 1, j + 1)), px(at(i, j + 1))};
-    const double s = (cell_z[static_cast<std::size_t>(c)] - zlo) / zr;  // 0 low .. 1 high
-    const cv::Scalar colour(150 + 90 * s, 110 + 120 * s, 70 + 150 * s);  // BGR: dark slate to pale sand
-    cv::fillConvexPoly(img, quad, 4, colour, cv::LINE_8, 4);
   }
   if (!surface.boundary_uv.empty()) {
     std::vector<cv::Point> poly;
     for (const auto& uv : surface.boundary_uv) poly.push_back(px(surface_point(surface, uv.x(), uv.y())));
     cv::polylines(img, poly, true, cv::Scalar(40, 140, 40), 2, cv::LINE_AA, 4);
   }
-  // Feed moves solid, then rapids dashed on top (in a top view they run over the passes).
-  const auto& moves = path.cl.moves;
+
+  // Feed moves coloured by the tip's height: the scale spans the cutting moves (a feed after a
+  // feed; a plunge starts at the clearance height), plunges and lifts take its end colours.
+  double zlo = 1e300, zhi = -1e300;
   for (std::size_t k = 1; k < moves.size(); ++k) {
-    if (moves[k].kind == ClMove::Kind::Feed) cv::line(img, px(moves[k - 1].tip_mm), px(moves[k].tip_mm), cv::Scalar(120, 40, 0), 1, cv::LINE_AA, 4);
+    if (moves[k].kind == ClMove::Kind::Feed && moves[k - 1].kind == ClMove::Kind::Feed) {
+      zlo = std::min(zlo, moves[k].tip_mm.z()), zhi = std::max(zhi, moves[k].tip_mm.z());
+    }
   }
+  if (!(zhi >= zlo)) zlo = 0, zhi = 1;
+  if (!(zhi > zlo)) zlo -= 0.5, zhi += 0.5;
+  for (std::size_t k = 1; k < moves.size(); ++k) {
+    if (moves[k].kind != ClMove::Kind::Feed) continue;
+    const double z = 0.5 * (moves[k - 1].tip_mm.z() + moves[k].tip_mm.z());
+    // (Not antialiased: a pass keeps its height's colour exactly, not blended into the ground.)
+    cv::line(img, px(moves[k - 1].tip_mm), px(moves[k].tip_mm), plot::viridis((z - zlo) / (zhi - zlo)), 1, cv::LINE_8, 4);
+  }
+  // Rapids dashed on top, thin, so the passes under them show between the dashes.
   for (std::size_t k = 1; k < moves.size(); ++k) {
     if (moves[k].kind != ClMove::Kind::Rapid) continue;
     const cv::Point2d a = px(moves[k - 1].tip_mm), b = px(moves[k].tip_mm);
     const double len = cv::norm(b - a) / 16;  // pixels
-    const int dashes = std::max(1, static_cast<int>(len / 6));
+    const int dashes = std::max(1, static_cast<int>(len / 5));
     for (int d = 0; d < dashes; d += 2) {
       const cv::Point2d p = a + (b - a) * (static_cast<double>(d) / dashes);
       const cv::Point2d q = a + (b - a) * (static_cast<double>(d + 1) / dashes);
-      cv::line(img, cv::Point(cvRound(p.x), cvRound(p.y)), cv::Point(cvRound(q.x), cvRound(q.y)), cv::Scalar(40, 40, 220), 2,
-               cv::LINE_8, 4);
+      cv::line(img, cv::Point(cvRound(p.x), cvRound(p.y)), cv::Point(cvRound(q.x), cvRound(q.y)), bgr(kRapidBgr), 1, cv::LINE_8, 4);
     }
   }
   for (const PassSegment& seg : path.segments) {
     for (const CutterLocation& p : seg.points) {
-      if (p.gouge) cv::circle(img, px(p.tip), 4 * 16, cv::Scalar(220, 0, 220), 1, cv::LINE_AA, 4);
+      if (p.gouge) cv::circle(img, px(p.tip), 4 * 16, bgr(kGougeBgr), 1, cv::LINE_AA, 4);
     }
   }
+  // Start and end of the cut: the first and last feed moves.
+  const auto first = std::find_if(moves.begin(), moves.end(), [](const ClMove& m) { return m.kind == ClMove::Kind::Feed; });
+  const auto last = std::find_if(moves.rbegin(), moves.rend(), [](const ClMove& m) { return m.kind == ClMove::Kind::Feed; });
+  if (first != moves.end()) {
+    mark(img, axes.plot, axes.px(last->tip_mm.x(), last->tip_mm.y()), false, bgr(kEndBgr), "end");
+    mark(img, axes.plot, axes.px(first->tip_mm.x(), first->tip_mm.y()), true, bgr(kStartBgr), "start");
+  }
+  plot::draw_axes(img, axes);
+  plot::ColourBar bar;
+  bar.bar = cv::Rect(width - kRight + 24, kTop + 10, 18, std::max(40, plot_h - 20));
+  bar.lo = zlo, bar.hi = zhi, bar.title = "tip z", bar.unit = "mm";
+  plot::draw_colour_bar(img, bar);
+
   const std::string text = std::to_string(path.stats.passes) + " passes, " + std::to_string(path.stats.cl_points) +
-                           " CL points, " + std::to_string(static_cast<long>(std::lround(path.stats.feed_length_mm))) +
-                           " mm feed. blue: feed, red dashes: rapid, magenta: gouge";
-  cv::putText(img, text, cv::Point(margin, height - 10), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+                           " CL points, " + plot::number(std::round(path.stats.feed_length_mm), 12) +
+                           " mm feed. Colour: tool tip height; red dashes: rapids; magenta rings: gouges (" +
+                           std::to_string(path.stats.gouge_points) + ")";
+  const double font = std::clamp(0.45 * width / 1100.0, 0.3, 0.6);
+  cv::putText(img, text, cv::Point(kLeft, height - 10), cv::FONT_HERSHEY_SIMPLEX, font, plot::kInk, 1, cv::LINE_AA);
   std::vector<std::uint8_t> png;
   if (!cv::imencode(".png", img, png)) throw GeometryError("PNG encoding failed");
   return png;

@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "formats/error.hpp"
+#include "formats/plot.hpp"
 #include "triangulate/reconstruct.hpp"
 
 namespace photomill::triangulate {
@@ -49,22 +50,6 @@ View top_view() {
   return {Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitZ(), "top view of the points (x right, y up)"};
 }
 
-// Smallest of {1, 2, 2.5, 5} x 10^k at or above x (x > 0), and the largest at or below.
-double nice_ceil(double x) {
-  const double p = std::pow(10.0, std::floor(std::log10(x)));
-  for (double m : {1.0, 2.0, 2.5, 5.0, 10.0}) {
-    if (m * p >= x * (1 - 1e-12)) return m * p;
-  }
-  return 10 * p;
-}
-double nice_floor(double x) {
-  const double p = std::pow(10.0, std::floor(std::log10(x)));
-  for (double m : {10.0, 5.0, 2.5, 2.0, 1.0}) {
-    if (m * p <= x * (1 + 1e-12)) return m * p;
-  }
-  return p;
-}
-
 double quantile(std::vector<double> v, double q) {
   if (v.empty()) return 0;
   const auto k = static_cast<std::size_t>(std::clamp(q, 0.0, 1.0) * static_cast<double>(v.size() - 1) + 0.5);
@@ -72,11 +57,7 @@ double quantile(std::vector<double> v, double q) {
   return v[k];
 }
 
-std::string format_value(double v) {
-  std::ostringstream s;
-  s << std::setprecision(3) << v;
-  return s.str();
-}
+std::string format_value(double v) { return plot::number(v, 3); }
 
 // Viridis (perceptually uniform, readable in grey) as 256 BGR colours.
 std::vector<cv::Vec3b> viridis() {
@@ -98,32 +79,48 @@ struct Frustum {
   std::array<Eigen::Vector3d, 4> corners;  // image corners (0,0) (w,0) (w,h) (0,h) at the frustum depth
 };
 
-// A panel: a view and the mapping of world points onto its pixels (panel-relative).
+// A panel: a view and the mapping of world points onto its pixels (panel-relative). The points
+// are drawn in `area`, the panel less its title and the room of its axes.
 struct Panel {
   View view;
   cv::Size size;
-  Eigen::Vector2d centre = Eigen::Vector2d::Zero();  // screen coordinates (r, u) at the panel centre
+  cv::Rect area;
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();  // screen coordinates (r, u) at the area's centre
   double scale = 1;                                  // px per mm
-  int top = 0;                                       // rows reserved for the title
 
   cv::Point2d px(const Eigen::Vector3d& p) const {
-    return {size.width / 2.0 + (p.dot(view.r) - centre.x()) * scale,
-            top + (size.height - top) / 2.0 - (p.dot(view.u) - centre.y()) * scale};
+    return {area.x + area.width / 2.0 + (p.dot(view.r) - centre.x()) * scale,
+            area.y + area.height / 2.0 - (p.dot(view.u) - centre.y()) * scale};
   }
-  // Fixed-point drawing coordinates; false when far outside (no overflow, nothing to draw).
+  // Fixed-point drawing coordinates; false outside the area (nothing drawn there: a frustum or a
+  // point beyond it would spill over the axes or the next panel).
   bool fixed(const Eigen::Vector3d& p, cv::Point& out) const {
     const cv::Point2d q = px(p);
-    if (!(std::abs(q.x) < 1e5 && std::abs(q.y) < 1e5)) return false;
+    // (2 px of slack: what frames the area lies on its edge, give or take a rounding.)
+    if (!(q.x >= area.x - 2 && q.x <= area.x + area.width + 2 && q.y >= area.y - 2 && q.y <= area.y + area.height + 2)) return false;
     out = cv::Point(cvRound(q.x * kOne), cvRound(q.y * kOne));
     return true;
   }
+  // The axes of a view along z (x right, y up), in mm.
+  plot::Axes axes() const {
+    plot::Axes a;
+    a.plot = area;
+    a.x0 = centre.x() - area.width / 2.0 / scale, a.x1 = centre.x() + area.width / 2.0 / scale;
+    a.y0 = centre.y() - area.height / 2.0 / scale, a.y1 = centre.y() + area.height / 2.0 / scale;
+    a.x_label = "x mm", a.y_label = "y mm";
+    return a;
+  }
 };
 
-Panel frame_panel(const View& view, cv::Size size, const std::vector<Eigen::Vector3d>& framing) {
+// `with_axes`: room for ticked axes (the top view); else a plain margin.
+Panel frame_panel(const View& view, cv::Size size, const std::vector<Eigen::Vector3d>& framing, bool with_axes) {
   Panel p;
   p.view = view;
   p.size = size;
-  p.top = 28;
+  const int title = 28;
+  p.area = with_axes ? cv::Rect(plot::kAxisLeftPx + 6, title + plot::kAxisTopPx + 6, size.width - plot::kAxisLeftPx - 26,
+                                size.height - title - plot::kAxisTopPx - plot::kAxisBottomPx - 16)
+                     : cv::Rect(30, title + 20, size.width - 60, size.height - title - 50);
   Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
   for (const auto& x : framing) {
     const Eigen::Vector2d s(x.dot(view.r), x.dot(view.u));
@@ -131,14 +128,14 @@ Panel frame_panel(const View& view, cv::Size size, const std::vector<Eigen::Vect
   }
   p.centre = 0.5 * (lo + hi);
   const Eigen::Vector2d ext = (hi - lo).cwiseMax(1e-9);
-  const double margin = 30;
-  p.scale = std::min((size.width - 2 * margin) / ext.x(), (size.height - p.top - 2 * margin) / ext.y());
+  p.scale = std::min(p.area.width / ext.x(), p.area.height / ext.y());
   return p;
 }
 
-void draw_panel(cv::Mat& img, const Panel& p, const std::vector<Eigen::Vector3d>& points,
+// Returns the number of frusta not drawn (not wholly inside the panel's area).
+std::size_t draw_panel(cv::Mat& img, const Panel& p, const std::vector<Eigen::Vector3d>& points,
                 const std::vector<cv::Scalar>& colours, const std::vector<char>& control, double radius,
-                const std::vector<Frustum>& frusta) {
+                const std::vector<Frustum>& frusta, bool with_axes) {
   img.setTo(cv::Scalar(250, 250, 250));
   cv::rectangle(img, cv::Rect(0, 0, img.cols, img.rows), cv::Scalar(200, 200, 200), 1);
   // Points far to near (painter's algorithm), then the control squares on top.
@@ -160,11 +157,15 @@ void draw_panel(cv::Mat& img, const Panel& p, const std::vector<Eigen::Vector3d>
                   kShift);
   }
   // Cameras.
+  std::size_t outside = 0;
   for (const Frustum& f : frusta) {
     cv::Point a, c[4];
     bool ok = p.fixed(f.apex, a);
     for (int k = 0; k < 4; ++k) ok = ok && p.fixed(f.corners[static_cast<std::size_t>(k)], c[k]);
-    if (!ok) continue;
+    if (!ok) {
+      ++outside;
+      continue;
+    }
     for (int k = 0; k < 4; ++k) {
       cv::line(img, a, c[k], kCameraInk, 1, cv::LINE_AA, kShift);
       cv::line(img, c[k], c[(k + 1) % 4], k == 0 ? kImageTop : kCameraInk, k == 0 ? 2 : 1, cv::LINE_AA, kShift);
@@ -172,11 +173,17 @@ void draw_panel(cv::Mat& img, const Panel& p, const std::vector<Eigen::Vector3d>
     cv::circle(img, a, cvRound(2.5 * kOne), kCameraInk, cv::FILLED, cv::LINE_AA, kShift);
     if (frusta.size() <= 40) {
       const cv::Point2d at = p.px(f.apex);
-      text(img, f.name, cv::Point(cvRound(at.x) + 5, cvRound(at.y) - 5), 0.35, kCameraInk);
+      const int w = plot::text_size(f.name, 0.35).width;
+      const int x = at.x + 5 + w < img.cols - 2 ? cvRound(at.x) + 5 : cvRound(at.x) - 5 - w;  // kept in the panel
+      text(img, f.name, cv::Point(x, std::max(12, cvRound(at.y) - 5)), 0.35, kCameraInk);
     }
   }
-  // Title, axes, scale bar.
+  // Title; ticked axes in mm (a view along z), else the axis directions and a scale bar.
   text(img, p.view.title, cv::Point(10, 20), 0.5);
+  if (with_axes) {
+    plot::draw_axes(img, p.axes());
+    return outside;
+  }
   const cv::Point origin(45, img.rows - 40);
   const std::pair<Eigen::Vector3d, std::pair<const char*, cv::Scalar>> axes[3] = {
       {Eigen::Vector3d::UnitX(), {"x", cv::Scalar(0, 0, 210)}},
@@ -193,13 +200,8 @@ void draw_panel(cv::Mat& img, const Panel& p, const std::vector<Eigen::Vector3d>
     const cv::Point2d n = std::hypot(d.x, d.y) > 4 ? d * (1 / std::hypot(d.x, d.y)) : cv::Point2d(0.7, 0.7);
     text(img, style.first, tip + cv::Point(cvRound(n.x * 10) - 4, cvRound(n.y * 10) + 4), 0.45, style.second);
   }
-  const double bar_mm = nice_floor(0.2 * img.cols / p.scale);
-  const int bar_px = cvRound(bar_mm * p.scale);
-  const cv::Point b0(img.cols - 20 - bar_px, img.rows - 22), b1(img.cols - 20, img.rows - 22);
-  cv::line(img, b0, b1, kInk, 2);
-  cv::line(img, b0 - cv::Point(0, 5), b0 + cv::Point(0, 5), kInk, 1);
-  cv::line(img, b1 - cv::Point(0, 5), b1 + cv::Point(0, 5), kInk, 1);
-  text(img, format_value(bar_mm) + " mm", cv::Point(b0.x, b0.y - 9), 0.45);
+  plot::draw_scale_bar(img, cv::Point(img.cols - 20, img.rows - 22), p.scale, img.cols / 5, "mm");
+  return outside;
 }
 
 }  // namespace
@@ -276,7 +278,7 @@ std::vector<std::uint8_t> render_preview_png(const PointCloud& cloud, const std:
     if (std::isfinite(v)) values.push_back(v);
   }
   const double top = values.empty() ? 1 : quantile(values, 0.95);
-  const double vmax = top > 0 ? nice_ceil(top) : 1;
+  const double vmax = top > 0 ? plot::nice_ceil(top) : 1;
   const auto lut = viridis();
   std::vector<cv::Scalar> colours(n);
   std::vector<char> control(n, 0);
@@ -302,11 +304,13 @@ std::vector<std::uint8_t> render_preview_png(const PointCloud& cloud, const std:
   cv::Mat img(height, width, CV_8UC3, cv::Scalar(255, 255, 255));
   const double radius = std::clamp(0.22 * std::sqrt(static_cast<double>(panel_w) * panel_h / static_cast<double>(n)), 1.2, 4.0);
   const View views[2] = {oblique_view(o.azimuth_deg, o.elevation_deg), top_view()};
+  std::size_t cut_cameras = 0;
   for (int k = 0; k < 2; ++k) {
     cv::Mat roi = img(cv::Rect(k * panel_w, 0, panel_w, panel_h));
     // The oblique view shows the whole scene, the top view the points in detail.
-    const Panel panel = frame_panel(views[k], roi.size(), k == 0 ? framing : points_box);
-    draw_panel(roi, panel, points, colours, control, radius, frusta);
+    // (The cameras are drawn in the oblique view only: the top view is framed on the points.)
+    const Panel panel = frame_panel(views[k], roi.size(), k == 0 ? framing : points_box, k == 1);
+    cut_cameras += draw_panel(roi, panel, points, colours, control, radius, k == 0 ? frusta : std::vector<Frustum>{}, k == 1);
   }
 
   // Colour bar.
@@ -332,8 +336,9 @@ std::vector<std::uint8_t> render_preview_png(const PointCloud& cloud, const std:
   // Two lines of text.
   std::ostringstream l1, l2;
   l1 << n << " points, " << controls << " control points (squares), " << frusta.size()
-     << " cameras (frusta: apex at the centre, thick orange edge = top of the image)";
+     << " cameras (frusta in the oblique view: apex at the centre, thick orange edge = top of the image)";
   if (far_cameras) l1 << "; " << far_cameras << " cameras far from the scene not drawn";
+  if (cut_cameras) l1 << "; " << cut_cameras << " cameras across the view's edge not drawn";
   l2 << "colour: " << (by_rms ? "reprojection RMS per point, px" : "uncertainty sigma per point, mm") << ", scale 0 .. "
      << format_value(vmax) << " (95th percentile " << format_value(top) << "); " << above
      << " points above it at the top colour";

@@ -1,6 +1,7 @@
 // triangulate's PNG preview (preview.hpp): it decodes, has the asked size, shows the points in
 // colour in both views and the cameras, keeps framing the scene when a wild point or a far camera
-// is added, and refuses an empty cloud. The command-line side is in cli_test.cpp.
+// is added, keeps the cameras in the oblique view, ticks the top view's axes in mm, and refuses
+// an empty cloud. The command-line side is in cli_test.cpp.
 #include "triangulate/preview.hpp"
 
 #include <gtest/gtest.h>
@@ -94,6 +95,22 @@ TEST_P(Preview, ShowsPointsAndCameras) {
   // The cameras add dark frustum lines to the oblique view (the top view is framed on the points).
   const cv::Rect oblique = panel_rect(o.width_px, 0);
   EXPECT_GT(dark_in(img, oblique), dark_in(bare, oblique) + 500) << "no camera drawn";
+  // Issue 27: the frusta stay in their own panel: the top view, its axes and the colour bar are
+  // the same pixels with or without the cameras.
+  const cv::Rect rest(panel_rect(o.width_px, 1).x, 0, o.width_px - panel_rect(o.width_px, 1).x, panel_rect(o.width_px, 1).height);
+  EXPECT_EQ(cv::norm(img(rest), bare(rest), cv::NORM_L1), 0) << "a camera drawn outside the oblique view";
+  // The top view has x and y axes ticked in mm: dark tick numbers left of and below its plot.
+  const cv::Rect top = panel_rect(o.width_px, 1);
+  // (Ink: any pixel darker than the panel's ground; no point is drawn outside the plot.)
+  const auto ink_in = [&](const cv::Rect& r) {
+    int n = 0;
+    for (int y = r.y; y < r.y + r.height; ++y) {
+      for (int x = r.x; x < r.x + r.width; ++x) n += std::max({bare.at<cv::Vec3b>(y, x)[0], bare.at<cv::Vec3b>(y, x)[1], bare.at<cv::Vec3b>(y, x)[2]}) < 200;
+    }
+    return n;
+  };
+  EXPECT_GT(ink_in(cv::Rect(top.x + 2, top.y + 60, 60, top.height - 120)), 25) << "y axis numbers";
+  EXPECT_GT(ink_in(cv::Rect(top.x + 80, top.y + top.height - 38, top.width - 100, 34)), 25) << "x axis numbers";
 }
 
 INSTANTIATE_TEST_SUITE_P(Triangulate, Preview,

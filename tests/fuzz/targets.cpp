@@ -10,6 +10,7 @@
 #include "formats/camera.hpp"
 #include "formats/cl_data.hpp"
 #include "formats/features.hpp"
+#include "formats/json_value.hpp"
 #include "formats/point_cloud.hpp"
 #include "formats/surface.hpp"
 #include "formats/tables.hpp"
@@ -72,6 +73,9 @@ void known_poses(const std::string& d) {
   triangulate::read_known_poses(in, "fuzz", &lines);
 }
 
+// The stages' JSON reports, as report reads them back.
+void json(const std::string& d) { parse_json(d, "fuzz"); }
+
 }  // namespace
 
 const std::vector<Target>& targets() {
@@ -80,7 +84,7 @@ const std::vector<Target>& targets() {
       {"poses", poses},               {"scale_bars", scale_bars},         {"point_cloud", point_cloud},
       {"surface", surface},           {"cl_data", cl_data},               {"camera_yaml", camera_yaml},
       {"features", features},         {"step", step},                     {"iges", iges},
-      {"known_poses", known_poses},
+      {"known_poses", known_poses},   {"json", json},
   };
   return all;
 }
