@@ -8,6 +8,7 @@
 #include <numbers>
 #include <unordered_map>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
 #include "formats/log.hpp"
@@ -202,8 +203,22 @@ std::optional<WallSummary> split_walls(const std::vector<Eigen::Vector3d>& point
     for (std::size_t k : members[id]) floor_z.push_back(points[k].z());
     floor_points += members[id].size();
   }
-  // With a floor found, the points of small regions under a step (bits of the walls' faces and
-  // of their foot) go with it.
+  // With a floor found, the regions at its height (within min_height_mm of its median: the plate
+  // around the walls where the cloud is too sparse for them to join it) are floor too, and the
+  // points of small regions under a step (bits of the walls' faces and of their foot) go with it.
+  if (!floor_z.empty()) {
+    const double floor_level = median(floor_z);
+    std::vector<double> z;
+    for (std::size_t id = 0; id < members.size(); ++id) {
+      if (floor[id]) continue;
+      z.clear();
+      for (std::size_t k : members[id]) z.push_back(points[k].z());
+      if (std::abs(median(z) - floor_level) > o.min_height_mm) continue;
+      floor[id] = 1;
+      floor_z.insert(floor_z.end(), z.begin(), z.end());
+      floor_points += members[id].size();
+    }
+  }
   auto dropped = [&](std::size_t k) {
     if (wall[k]) return true;
     const std::size_t id = region[k];
@@ -219,24 +234,57 @@ std::optional<WallSummary> split_walls(const std::vector<Eigen::Vector3d>& point
   s.radius_mm = r;
   s.floor_z_mm = median(floor_z);
   s.wall_top_z_mm = median(step_top, 0.95);
-  // 4. The top's rim: near a dropped point (within r in x, y), a kept point with another kept one
-  //    above it, higher by rim_step_mm and steeper than slope_deg, is on the wall's face just under
-  //    the rim (or a feature straddling the edge); it would pull the top's edge down.
+  // 4. The top's rim: near a dropped point (within r in x, y), a kept point lower than the plane
+  //    of its kept neighbours within r predicts, by rim_step_mm plus three robust standard
+  //    deviations of their residuals (1.4826 MAD), is on a wall's face just under the rim (or a
+  //    feature straddling the edge); it would pull the top's edge down. The plane
+  //    z = a + b (x - px) + c (y - py) by least squares, once more without the neighbours that
+  //    are themselves that low (other points of the face).
   std::vector<char> rim_drop(points.size(), 0);
+  std::vector<Eigen::Vector3d> around;
+  std::vector<double> residual;
   for (std::size_t k : kept) {
     if (dropped(k)) continue;
     const Eigen::Vector3d& p = points[k];
-    bool near_wall = false, under = false;
+    bool near_wall = false;
+    around.clear();
     near.column(p, [&](std::size_t m) {
       if (dropped(m)) {
         near_wall = true;
-        return;
+      } else if (m != k && std::abs(points[m].z() - p.z()) <= 2 * r) {
+        around.push_back(points[m] - p);
       }
-      const Eigen::Vector3d& q = points[m];
-      const double dz = q.z() - p.z();
-      if (dz >= o.rim_step_mm && dz >= tan_wall * std::hypot(q.x() - p.x(), q.y() - p.y())) under = true;
     });
-    rim_drop[k] = near_wall && under;
+    if (!near_wall || around.size() < o.min_neighbours) continue;
+    std::vector<char> use(around.size(), 1);
+    for (int pass = 0; pass < 2; ++pass) {
+      Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+      std::size_t n = 0;
+      for (std::size_t i = 0; i < around.size(); ++i) {
+        if (!use[i]) continue;
+        const Eigen::Vector3d row(1, around[i].x(), around[i].y());
+        ata += row * row.transpose();
+        atb += row * around[i].z();
+        ++n;
+      }
+      const Eigen::LDLT<Eigen::Matrix3d> ldlt(ata);
+      if (n < o.min_neighbours || ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-9)) break;
+      const Eigen::Vector3d plane = ldlt.solve(atb);
+      residual.clear();
+      for (std::size_t i = 0; i < around.size(); ++i) {
+        if (use[i]) residual.push_back(around[i].z() - plane.dot(Eigen::Vector3d(1, around[i].x(), around[i].y())));
+      }
+      for (double& e : residual) e = std::abs(e);
+      const double cutoff = o.rim_step_mm + 3 * 1.4826 * median(residual);
+      if (pass == 1) {
+        rim_drop[k] = plane[0] > cutoff;  // p is at the origin: the plane is a above it
+        break;
+      }
+      for (std::size_t i = 0; i < around.size(); ++i) {
+        use[i] = around[i].z() - plane.dot(Eigen::Vector3d(1, around[i].x(), around[i].y())) >= -cutoff;
+      }
+    }
   }
   std::vector<std::size_t> out;
   out.reserve(kept.size());

@@ -16,11 +16,14 @@
 //    step may be seen across a gap where the top hid the wall's foot from the camera).
 //    A region of which half the points or more lie right under the higher one (within a mean
 //    spacing in x, y) is not beside the top but under it, the underside of an overhang: not floor
-//    (the fold check judges it). Floor regions and wall faces are dropped, every other point kept.
+//    (the fold check judges it). Regions at the floor's height (median within min_height_mm of
+//    the floor's) are floor too: the plate where a sparse cloud splits it into several regions.
+//    Floor regions and wall faces are dropped, every other point kept.
 //    No floor: no walls (the selection is unchanged).
-// 4. Near what was dropped (within r in x, y), a point with another kept point above it, higher
-//    by rim_step_mm and steeper than slope_deg, is on a wall's face just under the rim (or a
-//    feature straddling the edge): dropped too, or it pulls the top's edge down.
+// 4. Near what was dropped (within r in x, y), a point lower than the plane of its kept
+//    neighbours within r predicts, by rim_step_mm plus three robust deviations about it, is
+//    on a wall's face just under the rim (or a feature straddling the edge): dropped too, or it
+//    pulls the top's edge down.
 #pragma once
 
 #include <cstddef>
@@ -37,12 +40,12 @@ struct WallOptions {
   double radius_mm = 2;                // r: the neighbourhood, at least this...
   double radius_spacings = 2.5;        // ...and at least this many mean point spacings
   std::size_t min_neighbours = 5;      // a normal from fewer neighbours is not judged
-  double step_slope_deg = 70;          // a step from a region up to another is steeper than this...
+  double step_slope_deg = 60;          // a step from a region up to another is steeper than this...
   double min_height_mm = 2;            // ...and at least this high
   std::size_t min_region_points = 50;  // smaller regions are neither floor nor top (noise, a marker)
   std::size_t min_step_points = 20;    // a floor has at least this many points under a step
-  double rim_step_mm = 0.25;           // near the walls, a point this far under another, steeper
-                                       // than slope_deg, is on a wall's face just under the rim
+  double rim_step_mm = 0.25;           // near the walls, a point this far under its neighbours'
+                                       // plane (plus 3 robust sigma) is on a wall's face under the rim
 };
 
 struct WallSummary {
