@@ -51,6 +51,7 @@ TEST_P(RealScan, BunnyBodyPatchFitsAtEveryNetWithDefaultOptions) {
   o.fit.poles_u = o.fit.poles_v = poles;
   const Result r = fit_point_cloud(patch, o);
   EXPECT_EQ(r.stats.count, 19661u);
+  EXPECT_FALSE(r.selection.walls.has_value()) << "a scan of the body stands on no walls";
   EXPECT_LE(r.stats.rms_mm, bound_mm) << poles << " poles";
   EXPECT_EQ(r.fit.plane, PlaneChoice::Xy) << "the scan's flank is steeper over its best-fit plane than over xy";
 }
