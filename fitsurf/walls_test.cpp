@@ -2,6 +2,7 @@
 // without points on the walls' faces and with a gap at their foot; a blended part with steep
 // flanks, gross outliers and --walls off leave the selection as it was.
 #include <cmath>
+#include <ostream>
 
 #include <gtest/gtest.h>
 
@@ -59,6 +60,10 @@ WalledCloud walled_part(double wall_mm, double face_step_mm, double gap_mm, std:
 struct WallCase {
   double wall_mm, face_step_mm, gap_mm;
 };
+
+void PrintTo(const WallCase& c, std::ostream* os) {
+  *os << c.wall_mm << " mm high, " << (c.face_step_mm > 0 ? "face points" : "bare faces") << ", gap " << c.gap_mm << " mm";
+}
 
 class Walls : public ::testing::TestWithParam<WallCase> {};
 
