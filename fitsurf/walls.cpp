@@ -73,32 +73,20 @@ private:
   std::unordered_map<std::uint64_t, std::vector<std::size_t>> map_, columns_;
 };
 
-double median(std::vector<double> v, double q = 0.5) {
+double quantile(std::vector<double> v, double q) {
   if (v.empty()) return 0;
   const auto at = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1));
   std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(at), v.end());
   return v[at];
 }
 
-}  // namespace
+constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
 
-std::optional<WallSummary> split_walls(const std::vector<Eigen::Vector3d>& points, std::vector<std::size_t>& kept,
-                                       const WallOptions& o) {
-  if (!o.enabled || kept.size() < 2 * o.min_region_points) return std::nullopt;
-  // r: at least radius_spacings mean spacings of the points over their xy box.
-  Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-  for (std::size_t k : kept) {
-    lo = lo.cwiseMin(points[k].head<2>());
-    hi = hi.cwiseMax(points[k].head<2>());
-  }
-  const double area = std::max((hi - lo).prod(), 1e-12);
-  const double spacing = std::sqrt(area / static_cast<double>(kept.size()));
-  const double r = std::max(o.radius_mm, o.radius_spacings * spacing);
-  const Buckets near(points, kept, r);
-
-  // 1. Wall points: the normal of the neighbourhood's best-fit plane more than slope_deg from z.
+// Step 1 of walls.hpp: the points whose neighbours' best-fit plane (PCA) is more than slope_deg
+// from z; marks them in `wall`.
+std::vector<std::size_t> wall_points(const std::vector<Eigen::Vector3d>& points, const std::vector<std::size_t>& kept,
+                                     const Buckets& near, const WallOptions& o, std::vector<char>& wall) {
   const double cos_wall = std::cos(o.slope_deg * std::numbers::pi / 180);
-  std::vector<char> wall(points.size(), 0);
   std::vector<std::size_t> walls;
   for (std::size_t k : kept) {
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
@@ -119,17 +107,19 @@ std::optional<WallSummary> split_walls(const std::vector<Eigen::Vector3d>& point
       walls.push_back(k);
     }
   }
-  log::debug("walls: " + std::to_string(walls.size()) + " of " + std::to_string(kept.size()) +
-             " points on faces steeper than " + std::to_string(o.slope_deg) + " degrees (radius " + std::to_string(r) + " mm)");
+  return walls;
+}
 
-  // 2. Regions of the other points: two points within r of each other, joined by a segment no
-  //    steeper than slope_deg, are in the same region.
+// Step 2: the regions of the points not on a wall (flood fill over links within r no steeper
+// than slope_deg); region[k] receives each point's region, members each region's points.
+std::vector<std::vector<std::size_t>> regions(const std::vector<Eigen::Vector3d>& points,
+                                              const std::vector<std::size_t>& kept, const Buckets& near,
+                                              const std::vector<char>& wall, const WallOptions& o,
+                                              std::vector<std::size_t>& region) {
   const double tan_wall = std::tan(o.slope_deg * std::numbers::pi / 180);
   auto gentle = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
     return std::abs(a.z() - b.z()) <= tan_wall * std::hypot(a.x() - b.x(), a.y() - b.y());
   };
-  constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
-  std::vector<std::size_t> region(points.size(), kNone);
   std::vector<std::vector<std::size_t>> members;
   std::vector<std::size_t> stack;
   for (std::size_t k : kept) {
@@ -149,6 +139,93 @@ std::optional<WallSummary> split_walls(const std::vector<Eigen::Vector3d>& point
       });
     }
   }
+  return members;
+}
+
+// Step 4: near a dropped point (within r in x, y), a kept point lower than the plane of its kept
+// neighbours within r predicts, by rim_step_mm plus three robust standard deviations of their
+// residuals (1.4826 MAD), is on a wall's face just under the rim (or a feature straddling the
+// edge); it would pull the top's edge down. The plane z = a + b (x - px) + c (y - py) by least
+// squares, once more without the neighbours that are themselves that low (other points of the
+// face).
+template <typename Dropped>
+std::vector<char> rim_points(const std::vector<Eigen::Vector3d>& points, const std::vector<std::size_t>& kept,
+                             const Buckets& near, const Dropped& dropped, double r, const WallOptions& o) {
+  std::vector<char> rim_drop(points.size(), 0);
+  std::vector<Eigen::Vector3d> around;
+  std::vector<double> residual;
+  for (std::size_t k : kept) {
+    if (dropped(k)) continue;
+    const Eigen::Vector3d& p = points[k];
+    bool near_wall = false;
+    around.clear();
+    near.column(p, [&](std::size_t m) {
+      if (dropped(m)) {
+        near_wall = true;
+      } else if (m != k && std::abs(points[m].z() - p.z()) <= 2 * r) {
+        around.push_back(points[m] - p);
+      }
+    });
+    if (!near_wall || around.size() < o.min_neighbours) continue;
+    std::vector<char> use(around.size(), 1);
+    for (int pass = 0; pass < 2; ++pass) {
+      Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+      std::size_t n = 0;
+      for (std::size_t i = 0; i < around.size(); ++i) {
+        if (!use[i]) continue;
+        const Eigen::Vector3d row(1, around[i].x(), around[i].y());
+        ata += row * row.transpose();
+        atb += row * around[i].z();
+        ++n;
+      }
+      const Eigen::LDLT<Eigen::Matrix3d> ldlt(ata);
+      if (n < o.min_neighbours || ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-9)) break;
+      const Eigen::Vector3d plane = ldlt.solve(atb);
+      residual.clear();
+      for (std::size_t i = 0; i < around.size(); ++i) {
+        if (use[i]) residual.push_back(around[i].z() - plane.dot(Eigen::Vector3d(1, around[i].x(), around[i].y())));
+      }
+      for (double& e : residual) e = std::abs(e);
+      const double cutoff = o.rim_step_mm + 3 * 1.4826 * quantile(residual, 0.5);
+      if (pass == 1) {
+        rim_drop[k] = plane[0] > cutoff;  // p is at the origin: the plane is a above it
+        break;
+      }
+      for (std::size_t i = 0; i < around.size(); ++i) {
+        use[i] = around[i].z() - plane.dot(Eigen::Vector3d(1, around[i].x(), around[i].y())) >= -cutoff;
+      }
+    }
+  }
+  return rim_drop;
+}
+
+}  // namespace
+
+std::optional<WallSummary> split_walls(const std::vector<Eigen::Vector3d>& points, std::vector<std::size_t>& kept,
+                                       const WallOptions& o) {
+  if (!o.enabled || kept.size() < 2 * o.min_region_points) return std::nullopt;
+  // r: at least radius_spacings mean spacings of the points over their xy box.
+  Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (std::size_t k : kept) {
+    lo = lo.cwiseMin(points[k].head<2>());
+    hi = hi.cwiseMax(points[k].head<2>());
+  }
+  const double area = std::max((hi - lo).prod(), 1e-12);
+  const double spacing = std::sqrt(area / static_cast<double>(kept.size()));
+  const double r = std::max(o.radius_mm, o.radius_spacings * spacing);
+  const Buckets near(points, kept, r);
+
+  // 1. Wall points: the normal of the neighbourhood's best-fit plane more than slope_deg from z.
+  std::vector<char> wall(points.size(), 0);
+  const std::vector<std::size_t> walls = wall_points(points, kept, near, o, wall);
+  log::debug("walls: " + std::to_string(walls.size()) + " of " + std::to_string(kept.size()) +
+             " points on faces steeper than " + std::to_string(o.slope_deg) + " degrees (radius " + std::to_string(r) + " mm)");
+
+  // 2. Regions of the other points: two points within r of each other, joined by a segment no
+  //    steeper than slope_deg, are in the same region.
+  std::vector<std::size_t> region(points.size(), kNone);
+  const std::vector<std::vector<std::size_t>> members = regions(points, kept, near, wall, o, region);
 
   // 3. Floor: a region of at least min_region_points with min_step_points of its points under
   //    another such region, higher by min_height_mm and by tan(step_slope_deg) times their
@@ -159,7 +236,7 @@ std::optional<WallSummary> split_walls(const std::vector<Eigen::Vector3d>& point
     if (members[id].size() < o.min_region_points) continue;
     std::vector<double> z;
     for (std::size_t k : members[id]) z.push_back(points[k].z());
-    median_z[id] = median(z);
+    median_z[id] = quantile(z, 0.5);
   }
   std::vector<std::size_t> under(members.size(), 0);
   std::vector<char> floor(members.size(), 0);
@@ -207,13 +284,13 @@ std::optional<WallSummary> split_walls(const std::vector<Eigen::Vector3d>& point
   // around the walls where the cloud is too sparse for them to join it) are floor too, and the
   // points of small regions under a step (bits of the walls' faces and of their foot) go with it.
   if (!floor_z.empty()) {
-    const double floor_level = median(floor_z);
+    const double floor_level = quantile(floor_z, 0.5);
     std::vector<double> z;
     for (std::size_t id = 0; id < members.size(); ++id) {
       if (floor[id]) continue;
       z.clear();
       for (std::size_t k : members[id]) z.push_back(points[k].z());
-      if (std::abs(median(z) - floor_level) > o.min_height_mm) continue;
+      if (std::abs(quantile(z, 0.5) - floor_level) > o.min_height_mm) continue;
       floor[id] = 1;
       floor_z.insert(floor_z.end(), z.begin(), z.end());
       floor_points += members[id].size();
@@ -232,60 +309,10 @@ std::optional<WallSummary> split_walls(const std::vector<Eigen::Vector3d>& point
   s.wall_points = walls.size();
   s.dropped_floor = floor_points;
   s.radius_mm = r;
-  s.floor_z_mm = median(floor_z);
-  s.wall_top_z_mm = median(step_top, 0.95);
-  // 4. The top's rim: near a dropped point (within r in x, y), a kept point lower than the plane
-  //    of its kept neighbours within r predicts, by rim_step_mm plus three robust standard
-  //    deviations of their residuals (1.4826 MAD), is on a wall's face just under the rim (or a
-  //    feature straddling the edge); it would pull the top's edge down. The plane
-  //    z = a + b (x - px) + c (y - py) by least squares, once more without the neighbours that
-  //    are themselves that low (other points of the face).
-  std::vector<char> rim_drop(points.size(), 0);
-  std::vector<Eigen::Vector3d> around;
-  std::vector<double> residual;
-  for (std::size_t k : kept) {
-    if (dropped(k)) continue;
-    const Eigen::Vector3d& p = points[k];
-    bool near_wall = false;
-    around.clear();
-    near.column(p, [&](std::size_t m) {
-      if (dropped(m)) {
-        near_wall = true;
-      } else if (m != k && std::abs(points[m].z() - p.z()) <= 2 * r) {
-        around.push_back(points[m] - p);
-      }
-    });
-    if (!near_wall || around.size() < o.min_neighbours) continue;
-    std::vector<char> use(around.size(), 1);
-    for (int pass = 0; pass < 2; ++pass) {
-      Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
-      Eigen::Vector3d atb = Eigen::Vector3d::Zero();
-      std::size_t n = 0;
-      for (std::size_t i = 0; i < around.size(); ++i) {
-        if (!use[i]) continue;
-        const Eigen::Vector3d row(1, around[i].x(), around[i].y());
-        ata += row * row.transpose();
-        atb += row * around[i].z();
-        ++n;
-      }
-      const Eigen::LDLT<Eigen::Matrix3d> ldlt(ata);
-      if (n < o.min_neighbours || ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-9)) break;
-      const Eigen::Vector3d plane = ldlt.solve(atb);
-      residual.clear();
-      for (std::size_t i = 0; i < around.size(); ++i) {
-        if (use[i]) residual.push_back(around[i].z() - plane.dot(Eigen::Vector3d(1, around[i].x(), around[i].y())));
-      }
-      for (double& e : residual) e = std::abs(e);
-      const double cutoff = o.rim_step_mm + 3 * 1.4826 * median(residual);
-      if (pass == 1) {
-        rim_drop[k] = plane[0] > cutoff;  // p is at the origin: the plane is a above it
-        break;
-      }
-      for (std::size_t i = 0; i < around.size(); ++i) {
-        use[i] = around[i].z() - plane.dot(Eigen::Vector3d(1, around[i].x(), around[i].y())) >= -cutoff;
-      }
-    }
-  }
+  s.floor_z_mm = quantile(floor_z, 0.5);
+  s.wall_top_z_mm = quantile(step_top, 0.95);
+  // 4. The top's rim: a point under its neighbours' plane near what was dropped.
+  const std::vector<char> rim_drop = rim_points(points, kept, near, dropped, r, o);
   std::vector<std::size_t> out;
   out.reserve(kept.size());
   for (std::size_t k : kept) {

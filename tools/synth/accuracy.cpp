@@ -185,9 +185,16 @@ void marker_figures(Report& r, const std::map<PointId, Eigen::Vector3d>& truth, 
 // than 2 mm in x, y from a wall's edge"); a blended part's inside its edge blend.
 constexpr double kWallMarginMm = 2;
 
+// The part's top, where the surface and the material left are judged: inside a blended part's
+// edge blend, more than kWallMarginMm inside a walled part's walls.
+double judged_margin(const synth::HeightField& h) { return h.walled() ? kWallMarginMm : h.edge_blend_mm; }
+bool on_judged_top(const synth::HeightField& h, double x, double y) {
+  const double margin = judged_margin(h);
+  return x >= h.x_min_mm + margin && x <= h.x_max_mm - margin && y >= h.y_min_mm + margin && y <= h.y_max_mm - margin;
+}
+
 // Vertical deviation of the fitted surface from the true one, over the part's top.
 void surface_figures(Report& r, const synth::HeightField& h, const BSplineSurface& s, const Bounds& b) {
-  const double margin = h.walled() ? kWallMarginMm : h.edge_blend_mm;
   const double u0 = s.knots_u[s.degree_u], u1 = s.knots_u[s.num_poles_u];
   const double v0 = s.knots_v[s.degree_v], v1 = s.knots_v[s.num_poles_v];
   double sum = 0, max = 0;
@@ -196,10 +203,7 @@ void surface_figures(Report& r, const synth::HeightField& h, const BSplineSurfac
   for (int i = 0; i <= 100; ++i) {
     for (int j = 0; j <= 100; ++j) {
       const Eigen::Vector3d p = surface_point(s, u0 + (u1 - u0) * i / 100, v0 + (v1 - v0) * j / 100);
-      if (p.x() < h.x_min_mm + margin || p.x() > h.x_max_mm - margin || p.y() < h.y_min_mm + margin ||
-          p.y() > h.y_max_mm - margin) {
-        continue;
-      }
+      if (!on_judged_top(h, p.x(), p.y())) continue;
       const double e = std::abs(p.z() - h.height_mm(p.x(), p.y()));
       sum += e * e;
       if (e > max) {
@@ -268,13 +272,6 @@ double distance_to_truth(const synth::HeightField& h, const Eigen::Vector3d& c, 
   return std::sqrt(d2);
 }
 
-// The part's top, where the surface and the material left are judged: inside a blended part's
-// edge blend, more than kWallMarginMm inside a walled part's walls.
-bool on_judged_top(const synth::HeightField& h, double x, double y) {
-  const double margin = h.walled() ? kWallMarginMm : h.edge_blend_mm;
-  return x >= h.x_min_mm + margin && x <= h.x_max_mm - margin && y >= h.y_min_mm + margin && y <= h.y_max_mm - margin;
-}
-
 // Material left on the part's top by a ball end mill of radius R: a z-map (Anderson 1978, the
 // "z-buffer" of CAM verification) on a kZmapCellMm grid over the judged top holds the lowest
 // point of the ball over each cell, cz - sqrt(R^2 - d^2) for every ball centre within R in x, y;
@@ -283,7 +280,7 @@ bool on_judged_top(const synth::HeightField& h, double x, double y) {
 constexpr double kZmapCellMm = 0.25, kZmapStepMm = 0.1;
 std::pair<double, double> material_left(const synth::HeightField& h, const ClData& cl, double R,
                                         Eigen::Vector2d& at_max) {
-  const double margin = h.walled() ? kWallMarginMm : h.edge_blend_mm;
+  const double margin = judged_margin(h);
   const double x0 = h.x_min_mm + margin, y0 = h.y_min_mm + margin;
   const int nx = static_cast<int>((h.x_max_mm - margin - x0) / kZmapCellMm) + 1;
   const int ny = static_cast<int>((h.y_max_mm - margin - y0) / kZmapCellMm) + 1;
