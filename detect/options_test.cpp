@@ -176,6 +176,13 @@ INSTANTIATE_TEST_SUITE_P(
                      EXPECT_LT(r.features, plain_sift().features);
                    }},
         bad("sift_edge_threshold_0_5", {"--sift-edge-threshold", "0.5"}, "--sift-edge-threshold"),
+        OptionCase{"sift_contrast_threshold", sift({"--sift-contrast-threshold", "0.08"}), 0, "",
+                   [](const Outcome& r) {
+                     // A higher threshold than the default 0.01 drops the faint features.
+                     ASSERT_GT(plain_sift().features, 0u);
+                     EXPECT_LT(r.features, plain_sift().features);
+                   }},
+        bad("sift_contrast_threshold_2", {"--sift-contrast-threshold", "2"}, "--sift-contrast-threshold"),
         OptionCase{"sift_octave_layers", sift({"--sift-octave-layers", "1"}), 0, "",
                    [](const Outcome& r) {
                      EXPECT_GT(r.features, 0u);

@@ -229,6 +229,16 @@ INSTANTIATE_TEST_SUITE_P(
                      EXPECT_LT(json_number(r.report, "rms_mm", "residuals"), 0.02);
                    }},
         bad("cg_tolerance_zero", {"--solver", "cg", "--cg-tolerance", "0"}, "--cg-tolerance"),
+        OptionCase{"noise_mm", on({"--noise-mm", "0.01"}), 0, "",
+                   // The smoothing chosen so the residuals match the points' 0.01 mm noise (Reinsch).
+                   [](const Outcome& r) {
+                     const double chosen = json_number(r.report, "smoothing_mm4", "fit");
+                     const double plain = json_number(fit({}).report, "smoothing_mm4", "fit");
+                     ASSERT_TRUE(std::isfinite(chosen) && std::isfinite(plain)) << r.report;
+                     EXPECT_NE(chosen, plain);
+                     EXPECT_NEAR(json_number(r.report, "rms_mm", "residuals"), 0.01, 0.003) << r.report;
+                   }},
+        bad("noise_mm_negative", {"--noise-mm=-1"}, "--noise-mm"),
         OptionCase{"no_correction", on({"--no-correction"}), 0, "",
                    [](const Outcome& r) {
                      EXPECT_EQ(json_raw(r.report, "parameter_correction", "fit"), "false");

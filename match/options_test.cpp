@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -214,6 +215,15 @@ INSTANTIATE_TEST_SUITE_P(
                      EXPECT_LT(feature_tracks(r), feature_tracks(wide)) << r.r.err << wide.r.err;
                    }},
         bad("guided_ratio_0_05", {"--guided-ratio", "0.05"}, "--guided-ratio"),
+        OptionCase{"no_guided", features({"--poses", "{demo}poses.csv", "--no-guided", "--guided-ratio", "0.3"}), 0, "",
+                   [](const Outcome& r) {
+                     // Matched by kd-tree, not along the epipolar lines: --guided-ratio no longer applies.
+                     const Outcome kd = match(features({"--poses", "{demo}poses.csv", "--no-guided"}));
+                     const Outcome guided = match(features({"--poses", "{demo}poses.csv", "--guided-ratio", "0.3"}));
+                     EXPECT_EQ(r.r.out, kd.r.out);
+                     EXPECT_NE(r.r.out, guided.r.out);
+                     EXPECT_GT(feature_tracks(r), 0) << r.r.err;
+                   }},
         // With poses and no markers every pair of overlapping views is matched along its epipolar
         // lines (before: only the pairs sharing coded points, so none, and "no tracks").
         OptionCase{"guided_max_axis_angle_deg", features_only({"--poses", "{demo}poses.csv"}), 0, "",
@@ -263,6 +273,29 @@ INSTANTIATE_TEST_SUITE_P(
                      EXPECT_GT(natural, 0u);
                    }},
         bad("feature_id_offset_negative", {"--feature-id-offset", "-1"}, "--feature-id-offset"),
+        OptionCase{"flann_checks", features({"--refine", "none", "--flann-checks", "1"}), 0, "",
+                   [](const Outcome& r) {
+                     // One kd-tree leaf per query finds fewer of the true nearest neighbours.
+                     const Outcome plain = match(features({"--refine", "none"}));
+                     EXPECT_LT(feature_matches(r), feature_matches(plain)) << r.r.err << plain.r.err;
+                   }},
+        bad("flann_checks_zero", {"--flann-checks", "0"}, "--flann-checks"),
+        OptionCase{"min_track_length", features({"--refine", "none", "--min-track-length", "3"}), 0, "",
+                   [](const Outcome& r) {
+                     // Every natural-feature track spans all three photos; with the default 2 some span two.
+                     std::map<TrackId, int> images;
+                     for (const auto& t : r.tracks) ++images[t.track_id];
+                     std::size_t natural = 0;
+                     for (const auto& [id, n] : images) {
+                       if (id < 1000000) continue;
+                       ++natural;
+                       EXPECT_GE(n, 3) << "track " << id;
+                     }
+                     EXPECT_GT(natural, 0u) << r.r.err;
+                     const Outcome plain = match(features({"--refine", "none"}));
+                     EXPECT_LT(feature_tracks(r), feature_tracks(plain)) << r.r.err << plain.r.err;
+                   }},
+        bad("min_track_length_1", {"--min-track-length", "1"}, "--min-track-length"),
         // Least-squares matching (the default --refine lsm)
         OptionCase{"lsm_window_per_size", features({"--lsm-window-per-size", "0.1"}), 0, "",
                    [](const Outcome& r) { EXPECT_NE(lsm_kept(r), lsm_kept(plain_features())) << r.r.err; }},
@@ -280,7 +313,17 @@ INSTANTIATE_TEST_SUITE_P(
         bad("lsm_max_shift_px_zero", {"--lsm-max-shift-px", "0"}, "--lsm-max-shift-px"),
         OptionCase{"lsm_min_correlation", features({"--lsm-min-correlation", "0.999"}), 0, "",
                    [](const Outcome& r) { EXPECT_GT(lsm_refused(r), lsm_refused(plain_features())) << r.r.err; }},
-        bad("lsm_min_correlation_2", {"--lsm-min-correlation", "2"}, "--lsm-min-correlation")),
+        bad("lsm_min_correlation_2", {"--lsm-min-correlation", "2"}, "--lsm-min-correlation"),
+        OptionCase{"lsm_quadratic", features({"--lsm-quadratic"}), 0, "",
+                   [](const Outcome& r) {
+                     // Second-order window terms: other sub-pixel positions (and other windows refused).
+                     ASSERT_GT(lsm_kept(r), 0) << r.r.err;
+                     EXPECT_NE(r.r.out, plain_features().r.out);
+                   }},
+        // The .feat files name the photos in the crops' folder: read from another folder, they are missing.
+        OptionCase{"image_dir", features({"--image-dir", "no-such-folder"}), 1, "no-such-folder", nullptr},
+        OptionCase{"image_dir_same", features({"--image-dir", "."}), 0, "",
+                   [](const Outcome& r) { EXPECT_EQ(r.r.out, plain_features().r.out); }}),
     [](const auto& info) { return std::string(info.param.name); });
 
 }  // namespace

@@ -230,6 +230,18 @@ TEST(Report, NamesWhatIsMissing) {
   EXPECT_EQ(images_of(r.out).count("drawings/part_00.png"), 0u) << "--no-drawings";
 }
 
+TEST(Report, TitleNamesThePageEscaped) {
+  Job job;
+  const auto plain = run_tool("report", {job.dir.string()});
+  ASSERT_EQ(plain.exit_code, 0) << plain.err;
+  EXPECT_NE(plain.out.find("<h1>photomill job report: " + job.dir.filename().string() + "</h1>"), std::string::npos);
+  const auto titled = run_tool("report", {job.dir.string(), "--title", "Handle <B> & mould"});
+  ASSERT_EQ(titled.exit_code, 0) << titled.err;
+  EXPECT_NE(titled.out.find("<title>Handle &lt;B&gt; &amp; mould</title>"), std::string::npos);
+  EXPECT_NE(titled.out.find("<h1>Handle &lt;B&gt; &amp; mould</h1>"), std::string::npos);
+  EXPECT_EQ(titled.out.find("photomill job report:"), std::string::npos);
+}
+
 // Bad input: one line naming the file and the problem, exit 1, the previous page left as it was.
 struct BadJob {
   const char* name;

@@ -179,6 +179,51 @@ TEST(Cli, PdfOnStdoutAndEveryOutputOnRequest) {
   EXPECT_NE(r.err.find("detect --aruco DICT_4X4_100"), std::string::npos) << r.err;
 }
 
+// Control points' largest |x| and |y|, mm.
+Eigen::Vector2d control_extent(const std::filesystem::path& csv) {
+  std::ifstream in(csv);
+  Eigen::Vector2d extent = Eigen::Vector2d::Zero();
+  for (const auto& p : read_control_points(in, csv.string())) extent = extent.cwiseMax(p.xyz_mm.head<2>().cwiseAbs());
+  return extent;
+}
+
+TEST(Cli, MarginMmKeepsTheMarkersFartherFromTheSheetsEdge) {
+  test::TempDir dir;
+  const auto wide = run_tool("targets", {"plate", "--control-points", "wide.csv", "-o", "wide.pdf"}, "", dir.path());
+  const auto narrow = run_tool("targets", {"plate", "--margin-mm", "40", "--control-points", "narrow.csv", "-o", "narrow.pdf"},
+                               "", dir.path());
+  ASSERT_EQ(wide.exit_code, 0) << wide.err;
+  ASSERT_EQ(narrow.exit_code, 0) << narrow.err;
+  const Eigen::Vector2d w = control_extent(dir.path() / "wide.csv");
+  const Eigen::Vector2d n = control_extent(dir.path() / "narrow.csv");
+  EXPECT_LT(n.x(), w.x() - 20);
+  EXPECT_LT(n.y(), w.y() - 20);
+  const auto bad = run_tool("targets", {"plate", "--margin-mm", "101", "-o", "bad.pdf"}, "", dir.path());
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("--margin-mm"), std::string::npos) << bad.err;
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "bad.pdf"));
+}
+
+TEST(Cli, DictFileDrawsTheMarkersOfACustomDictionary) {
+  // OpenCV's tutorial dictionary (35 markers of 6 x 6 bits), as detect --aruco-dict-file reads it.
+  const std::string dict = std::string(PHOTOMILL_SHARED_DIR) + "/data/opencv-aruco/tutorial_dict.yml";
+  if (!std::filesystem::exists(dict) && !std::getenv("CI")) GTEST_SKIP() << dict << " missing";
+  test::TempDir dir;
+  const auto custom = run_tool("targets", {"plate", "--dict-file", dict, "-o", "custom.pdf"}, "", dir.path());
+  const auto plain = run_tool("targets", {"plate", "-o", "plain.pdf"}, "", dir.path());
+  ASSERT_EQ(custom.exit_code, 0) << custom.err;
+  ASSERT_EQ(plain.exit_code, 0) << plain.err;
+  EXPECT_NE(custom.err.find("detect --aruco-dict-file " + dict), std::string::npos) << custom.err;
+  EXPECT_NE(test::read_file(dir.path() / "custom.pdf"), test::read_file(dir.path() / "plain.pdf"));
+  const auto both = run_tool("targets", {"plate", "--dict-file", dict, "--dict", "DICT_4X4_100", "-o", "both.pdf"}, "",
+                             dir.path());
+  EXPECT_EQ(both.exit_code, 2) << both.err;
+  const auto missing = run_tool("targets", {"plate", "--dict-file", "nodict.yml", "-o", "missing.pdf"}, "", dir.path());
+  EXPECT_EQ(missing.exit_code, 1) << missing.err;
+  EXPECT_NE(missing.err.find("nodict.yml"), std::string::npos) << missing.err;
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "missing.pdf"));
+}
+
 TEST(Cli, BadUsageIsExitTwoAndWritesNothing) {
   test::TempDir dir;
   struct Case {

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -28,7 +29,9 @@ using photomill::test::run_tool;
 using photomill::test::TempDir;
 using photomill::test::ToolResult;
 
-enum class Scene { Plain, Markers, Outliers };
+// Sized: the plain scene whose tracks give each observation a size_px, every third one 12 px and
+// 0.6 px off (the rest 1 px and exact): weighting by size tells them apart.
+enum class Scene { Plain, Markers, Outliers, Sized };
 
 // A scene's files: tracks.csv, camera.yaml, control.csv, and bars.csv (one bar without a sigma).
 class SceneFiles {
@@ -37,7 +40,17 @@ public:
     test::SceneOptions o;
     if (kind == Scene::Markers) o.plate_marker_side_mm = 20;
     if (kind == Scene::Outliers) o.outlier_fraction = 0.02;
-    const test::SceneTruth t = test::make_scene(o);
+    test::SceneTruth t = test::make_scene(o);
+    if (kind == Scene::Sized) {
+      std::mt19937 rng(5);
+      std::normal_distribution<double> noise(0, 0.6);
+      std::size_t k = 0;
+      for (auto& ob : t.tracks) {
+        const bool big = (k++ % 3) == 0;
+        ob.size_px = big ? 12.0 : 1.0;
+        if (big) ob.u_px += noise(rng), ob.v_px += noise(rng);
+      }
+    }
     write("tracks.csv", [&](std::ostream& s) { write_tracks(s, t.tracks); });
     write("camera.yaml", [&](std::ostream& s) { write_camera_yaml(s, t.camera); });
     write("control.csv", [&](std::ostream& s) { write_control_points(s, t.plate_points); });
@@ -61,8 +74,8 @@ private:
 };
 
 const SceneFiles& files(Scene kind) {
-  static const SceneFiles plain(Scene::Plain), markers(Scene::Markers), outliers(Scene::Outliers);
-  return kind == Scene::Markers ? markers : kind == Scene::Outliers ? outliers : plain;
+  static const SceneFiles plain(Scene::Plain), markers(Scene::Markers), outliers(Scene::Outliers), sized(Scene::Sized);
+  return kind == Scene::Markers ? markers : kind == Scene::Outliers ? outliers : kind == Scene::Sized ? sized : plain;
 }
 
 struct Outcome {
@@ -197,6 +210,17 @@ INSTANTIATE_TEST_SUITE_P(
                      EXPECT_NE(plain().report.find("\"natural\":"), std::string::npos) << plain().report;
                    }},
         bad("coded_id_limit_negative", {"--coded-id-limit", "-1"}, "--coded-id-limit"),
+        OptionCase{"ignore_feature_size", Scene::Sized, {"--coded-id-limit", "0", "--ignore-feature-size"}, 0, "",
+                   [](const Outcome& r) {
+                     // Every observation weighed alike: the 0.6 px noise of the large features is
+                     // spread over all, the fit's residuals differ from the size-weighted run's.
+                     const Outcome weighted = triangulate(Scene::Sized, {"--coded-id-limit", "0"});
+                     ASSERT_EQ(weighted.r.exit_code, 0) << weighted.r.err;
+                     const double alike = json_number(r.report, "final_rms_px");
+                     const double by_size = json_number(weighted.report, "final_rms_px");
+                     ASSERT_TRUE(std::isfinite(alike) && std::isfinite(by_size)) << r.report;
+                     EXPECT_NE(alike, by_size);
+                   }},
         OptionCase{"outlier_sigmas", Scene::Outliers, {"--outlier-sigmas", "1000", "--outlier-max-px", "100"}, 0, "",
                    // (the report also lists what triangulation itself dropped, beyond --max-reproj-px)
                    [](const Outcome& r) { EXPECT_LT(removed(r), removed(plain_outliers())) << r.report; }},
@@ -212,6 +236,14 @@ INSTANTIATE_TEST_SUITE_P(
         OptionCase{"max_iterations", Scene::Plain, {"--max-iterations", "1"}, 0, "",
                    [](const Outcome& r) { EXPECT_LE(json_number(r.report, "final_iterations", "bundle_adjustment"), 1); }},
         bad("max_iterations_zero", {"--max-iterations", "0"}, "--max-iterations"),
+        OptionCase{"function_tolerance", Scene::Plain, {"--function-tolerance", "0.5"}, 0, "",
+                   // Stop once an iteration lowers the cost by less than half: fewer iterations.
+                   [](const Outcome& r) {
+                     EXPECT_LT(json_number(r.report, "final_iterations", "bundle_adjustment"),
+                               json_number(plain().report, "final_iterations", "bundle_adjustment"))
+                         << r.report << plain().report;
+                   }},
+        bad("function_tolerance_zero", {"--function-tolerance", "0"}, "--function-tolerance"),
         OptionCase{"covariance_max_parameters", Scene::Plain, {"--covariance-max-parameters", "10"}, 0, "",
                    [](const Outcome& r) {
                      EXPECT_EQ(json_raw(r.report, "method", "uncertainty"), "\"per_point_fixed_poses\"");
