@@ -21,6 +21,16 @@ double median(std::vector<double> v) {
   return n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
+// K = [fx 0 cx; 0 fy cy; 0 0 1] from the intrinsics block (fx, fy, cx, cy).
+Eigen::Matrix3d camera_matrix(const Parameters& p) {
+  Eigen::Matrix3d K = Eigen::Matrix3d::Identity();
+  K(0, 0) = p.intrinsics[0];
+  K(1, 1) = p.intrinsics[1];
+  K(0, 2) = p.intrinsics[2];
+  K(1, 2) = p.intrinsics[3];
+  return K;
+}
+
 std::array<double, kPose> pose_from(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
   const Eigen::AngleAxisd aa(R);
   const Eigen::Vector3d r = aa.angle() * aa.axis();
@@ -196,11 +206,7 @@ Parameters initial_from_dlt(const std::vector<View>& views, const ModelOptions& 
   Parameters p;
   for (int i = 0; i < kIntrinsics; ++i) p.intrinsics[i] = median(k[i]);
   apply_fixed(model, image_size, p);
-  Eigen::Matrix3d K = Eigen::Matrix3d::Identity();
-  K(0, 0) = p.intrinsics[0];
-  K(1, 1) = p.intrinsics[1];
-  K(0, 2) = p.intrinsics[2];
-  K(1, 2) = p.intrinsics[3];
+  const Eigen::Matrix3d K = camera_matrix(p);
   for (std::size_t v = 0; v < views.size(); ++v) {
     if (cams[v]) {
       const auto guess = pose_from(cams[v]->R, cams[v]->t);
@@ -212,31 +218,33 @@ Parameters initial_from_dlt(const std::vector<View>& views, const ModelOptions& 
   return p;
 }
 
-Parameters initial_from_plane(const std::vector<View>& views, const ModelOptions& model, cv::Size image_size) {
-  std::vector<std::vector<cv::Point3f>> obj;
-  std::vector<std::vector<cv::Point2f>> img;
+OpenCvPoints opencv_points(const std::vector<View>& views, bool flatten) {
+  OpenCvPoints out;
   for (const auto& v : views) {
-    obj.emplace_back();
-    img.emplace_back();
+    out.object.emplace_back();
+    out.image.emplace_back();
     for (std::size_t i = 0; i < v.world_mm.size(); ++i) {
-      obj.back().emplace_back(static_cast<float>(v.world_mm[i].x()), static_cast<float>(v.world_mm[i].y()), 0.f);
-      img.back().emplace_back(static_cast<float>(v.observed_px[i].x()), static_cast<float>(v.observed_px[i].y()));
+      const Eigen::Vector3d& X = v.world_mm[i];
+      out.object.back().emplace_back(static_cast<float>(X.x()), static_cast<float>(X.y()),
+                                     flatten ? 0.f : static_cast<float>(X.z()));
+      out.image.back().emplace_back(static_cast<float>(v.observed_px[i].x()), static_cast<float>(v.observed_px[i].y()));
     }
   }
+  return out;
+}
+
+Parameters initial_from_plane(const std::vector<View>& views, const ModelOptions& model, cv::Size image_size) {
+  const OpenCvPoints points = opencv_points(views, true);
   cv::Mat K0;
   try {
-    K0 = cv::initCameraMatrix2D(obj, img, image_size, model.fix_aspect_ratio ? 1.0 : 0.0);
+    K0 = cv::initCameraMatrix2D(points.object, points.image, image_size, model.fix_aspect_ratio ? 1.0 : 0.0);
   } catch (const cv::Exception& e) {
     throw GeometryError(std::string("Zhang's initial estimate failed (") + e.err + "): the board views are degenerate");
   }
   Parameters p;
   p.intrinsics = {K0.at<double>(0, 0), K0.at<double>(1, 1), K0.at<double>(0, 2), K0.at<double>(1, 2)};
   apply_fixed(model, image_size, p);
-  Eigen::Matrix3d K = Eigen::Matrix3d::Identity();
-  K(0, 0) = p.intrinsics[0];
-  K(1, 1) = p.intrinsics[1];
-  K(0, 2) = p.intrinsics[2];
-  K(1, 2) = p.intrinsics[3];
+  const Eigen::Matrix3d K = camera_matrix(p);
   for (const auto& v : views) p.poses.push_back(solve_pose(v, K, nullptr));
   return p;
 }

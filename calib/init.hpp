@@ -49,6 +49,14 @@ Parameters initial_from_dlt(const std::vector<View>& views, const ModelOptions& 
 // cv::initCameraMatrix2D (principal point at the image centre), then each pose by PnP.
 Parameters initial_from_plane(const std::vector<View>& views, const ModelOptions& model, cv::Size image_size);
 
+// The views' points as OpenCV's calibration functions take them: one list per view, in float;
+// with `flatten`, z = 0 (the plane's own coordinates, as cv::initCameraMatrix2D reads them).
+struct OpenCvPoints {
+  std::vector<std::vector<cv::Point3f>> object;  // world_mm
+  std::vector<std::vector<cv::Point2f>> image;   // observed_px
+};
+OpenCvPoints opencv_points(const std::vector<View>& views, bool flatten);
+
 // The principal point OpenCV assumes before calibration, ((w - 1) / 2, (h - 1) / 2).
 Eigen::Vector2d image_centre(cv::Size image_size);
 

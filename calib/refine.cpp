@@ -258,17 +258,7 @@ RefineStats refine_opencv(const std::vector<View>& views, const ModelOptions& mo
   const auto t0 = Clock::now();
   RefineStats s;
   s.optimizer = "opencv";
-  std::vector<std::vector<cv::Point3f>> obj;
-  std::vector<std::vector<cv::Point2f>> img;
-  for (const auto& v : views) {
-    obj.emplace_back();
-    img.emplace_back();
-    for (std::size_t i = 0; i < v.world_mm.size(); ++i) {
-      const Eigen::Vector3d& X = v.world_mm[i];
-      obj.back().emplace_back(static_cast<float>(X.x()), static_cast<float>(X.y()), static_cast<float>(X.z()));
-      img.back().emplace_back(static_cast<float>(v.observed_px[i].x()), static_cast<float>(v.observed_px[i].y()));
-    }
-  }
+  const OpenCvPoints points = opencv_points(views, false);
   cv::Mat K = cv::Mat::eye(3, 3, CV_64F);
   cv::Mat D = cv::Mat::zeros(model.rational ? 8 : 5, 1, CV_64F);
   int flags = 0;
@@ -292,7 +282,7 @@ RefineStats refine_opencv(const std::vector<View>& views, const ModelOptions& mo
   const cv::TermCriteria criteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, options.max_iterations,
                                   std::numeric_limits<double>::epsilon());
   try {
-    cv::calibrateCamera(obj, img, image_size, K, D, rvecs, tvecs, flags, criteria);
+    cv::calibrateCamera(points.object, points.image, image_size, K, D, rvecs, tvecs, flags, criteria);
   } catch (const cv::Exception& e) {
     throw GeometryError(std::string("OpenCV's calibrateCamera failed: ") + e.err);
   }

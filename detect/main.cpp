@@ -1,58 +1,18 @@
 // detect: images -> observations CSV (image,point_id,u_px,v_px) of calibration-board corners, or
-// with --print-board the board's control points CSV; or ArUco marker corners and/or SIFT feature
-// files (options and run in photo_cli.hpp). One mode per run. Per-image results go to stderr.
-#include <optional>
+// with --print-board the board's control points CSV (run in board_cli.hpp); or ArUco marker
+// corners and/or SIFT feature files (options and run in photo_cli.hpp). One mode per run.
+// Per-image results go to stderr.
 #include <string>
+#include <tuple>
 #include <vector>
 
+#include "detect/board_cli.hpp"
 #include "detect/boards.hpp"
-#include "detect/draw.hpp"
 #include "detect/photo_cli.hpp"
 #include "formats/error.hpp"
-#include "formats/log.hpp"
 #include "formats/tool.hpp"
 
-namespace {
-
 using namespace photomill;
-
-void run_boards(detect::BoardSpec spec, const detect::BoardDetectOptions& options,
-                const std::vector<std::string>& image_args, bool print_board, const std::string& output,
-                const detect::DrawOptions& draw) {
-  detect::validate_board(spec);
-  if (print_board && !draw.dir.empty()) throw UsageError("--draw needs images, not --print-board");
-  tool::OutputFile out(output);
-  if (print_board) {
-    write_control_points(out.stream(), detect::board_control_points(spec));
-    out.commit();
-    return;
-  }
-  const auto images = detect::expand_image_arguments(image_args, *tool::open_input("-"));
-  if (images.empty()) throw UsageError("no images given");
-  std::optional<detect::DrawingFiles> drawings;
-  detect::BoardImageHook draw_board;
-  if (!draw.dir.empty()) {
-    drawings.emplace(draw, images);
-    draw_board = [&](const cv::Mat& grey, const detect::ImageDetection& r) {
-      drawings->write(r.image, detect::draw_board(grey, r, spec, draw));
-    };
-  }
-  const auto results = detect::detect_boards(
-      images, spec, options, [](const detect::ImageDetection& r) { log::info(detect::describe(r)); }, draw_board);
-  std::vector<Observation> observations;
-  int found = 0;
-  for (const auto& r : results) {
-    found += r.found ? 1 : 0;
-    observations.insert(observations.end(), r.observations.begin(), r.observations.end());
-  }
-  if (found == 0) throw GeometryError("no board found in any of the " + std::to_string(images.size()) + " images");
-  write_observations(out.stream(), observations);
-  out.commit();
-  log::info("board found in " + std::to_string(found) + " of " + std::to_string(images.size()) + " images, " +
-            std::to_string(observations.size()) + " corners");
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   std::vector<std::string> images;
@@ -109,6 +69,6 @@ int main(int argc, char** argv) {
           throw UsageError("say what to detect: --chessboard COLSxROWS, --charuco COLSxROWS, --aruco DICT, "
                            "--aruco-dict-file FILE or --features DIR");
         }
-        run_boards(spec, options, images, print_board, output, photo.draw);
+        detect::run_boards(spec, options, images, print_board, output, photo.draw);
       });
 }

@@ -1,6 +1,7 @@
 // detect's marker and natural-feature modes: their command-line options and the run that reads
 // images, writes the observations CSV (markers), one .feat file per image (features) and the
-// markers' scale bars. Kept apart from main.cpp, which also hosts the board modes.
+// markers' scale bars. Kept apart from main.cpp, which only reads the command line (the board
+// modes run in board_cli.hpp).
 #pragma once
 
 #include <string>

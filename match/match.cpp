@@ -225,57 +225,22 @@ struct PairWork {
   std::vector<FeatureMatch> inlier_matches;
 };
 
-}  // namespace
+// Guided matching's grid cell, px: ~0.4 features per cell at 20 000 per photo.
+constexpr double kGuidedCellPx = 8;
 
-std::vector<std::pair<std::size_t, std::size_t>> feature_pairs(
-    std::size_t n, const MatchOptions& o, const std::function<int(std::size_t, std::size_t)>& coded_overlap) {
-  std::set<std::pair<std::size_t, std::size_t>> pairs;
-  if (n <= static_cast<std::size_t>(std::max(o.exhaustive_max_images, 0))) {
-    for (std::size_t a = 0; a < n; ++a) {
-      for (std::size_t b = a + 1; b < n; ++b) pairs.emplace(a, b);
-    }
-    return {pairs.begin(), pairs.end()};
-  }
-  for (std::size_t a = 0; a < n; ++a) {
-    for (int d = 1; d <= o.sequence_neighbours && a + static_cast<std::size_t>(d) < n; ++d) {
-      pairs.emplace(a, a + static_cast<std::size_t>(d));
-    }
-    if (o.coded_neighbours <= 0) continue;
-    std::vector<std::pair<int, std::size_t>> overlap;
-    for (std::size_t b = 0; b < n; ++b) {
-      if (b == a) continue;
-      const int shared = coded_overlap(a, b);
-      if (shared > 0) overlap.emplace_back(-shared, b);
-    }
-    const auto k = std::min<std::size_t>(overlap.size(), static_cast<std::size_t>(o.coded_neighbours));
-    std::partial_sort(overlap.begin(), overlap.begin() + static_cast<std::ptrdiff_t>(k), overlap.end());
-    for (std::size_t m = 0; m < k; ++m) pairs.emplace(std::min(a, overlap[m].second), std::max(a, overlap[m].second));
-  }
-  return {pairs.begin(), pairs.end()};
-}
-
-MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::function<void(const std::string&)>& progress) {
-  auto say = [&](const std::string& m) {
-    if (progress) progress(m);
-  };
+// The options match cannot work with.
+void check_options(const MatchInputs& in, const MatchOptions& o) {
   if (!(o.ratio > 0 && o.ratio <= 1)) throw UsageError("--ratio must be in (0, 1]");
   if (!(o.guided_ratio > 0 && o.guided_ratio <= 1)) throw UsageError("--guided-ratio must be in (0, 1]");
   if (!(o.fit.threshold_px > 0)) throw UsageError("--threshold-px must be positive");
   if (o.feature_track_offset < 0) throw UsageError("--feature-id-offset must be non-negative");
   if (!in.poses.empty() && !in.camera) throw UsageError("--poses needs --camera (F = K^-T [t]x R K^-1)");
+}
 
-  MatchResult result;
-  std::unordered_map<std::string, std::size_t> image_index;
-  auto image_of = [&](const std::string& name) {
-    const auto [it, fresh] = image_index.emplace(name, result.images.size());
-    if (fresh) result.images.push_back(name);
-    return it->second;
-  };
-  for (const auto& ob : in.observations) image_of(ob.image);
-  for (const auto& fs : in.features) image_of(fs.image);
-  const std::size_t n = result.images.size();
-  if (n < 2) throw GeometryError("nothing to match: the inputs cover " + std::to_string(n) + " image(s), at least 2 are needed");
-
+// Each image's coded observations, features and (for refinement) grey image; `image_index` maps
+// an image name to its index in `data`.
+std::vector<ImageData> load_images(const MatchInputs& in, const MatchOptions& o,
+                                   const std::unordered_map<std::string, std::size_t>& image_index, std::size_t n) {
   std::vector<ImageData> data(n);
   for (const auto& ob : in.observations) {
     ImageData& d = data[image_index.at(ob.image)];
@@ -312,27 +277,36 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
       data[image_index.at(fs.image)].grey = &g;
     }
   }
-  // A pose names its image exactly or, failing that, by file name when only one pose has it (the
-  // poses of another tool name photos relative to its own folder), as triangulate --known-poses.
+  return data;
+}
+
+// A pose names its image exactly or, failing that, by file name when only one pose has it (the
+// poses of another tool name photos relative to its own folder), as triangulate --known-poses.
+// Empty without poses.
+std::unordered_map<std::string, const Pose*> poses_by_image(const std::vector<Pose>& poses,
+                                                            const std::vector<std::string>& images) {
   std::unordered_map<std::string, const Pose*> pose_of;
-  if (!in.poses.empty()) {
-    std::unordered_map<std::string, const Pose*> exact;
-    std::unordered_map<std::string, std::vector<const Pose*>> by_file;
-    for (const auto& p : in.poses) {
-      exact[p.image] = &p;
-      by_file[std::filesystem::path(p.image).filename().string()].push_back(&p);
-    }
-    for (const auto& name : result.images) {
-      if (const auto it = exact.find(name); it != exact.end()) {
-        pose_of[name] = it->second;
-      } else if (const auto f = by_file.find(std::filesystem::path(name).filename().string());
-                 f != by_file.end() && f->second.size() == 1) {
-        pose_of[name] = f->second.front();
-      } else {
-        throw InputError(name, 0, "no pose for this image in --poses");
-      }
+  if (poses.empty()) return pose_of;
+  std::unordered_map<std::string, const Pose*> exact;
+  std::unordered_map<std::string, std::vector<const Pose*>> by_file;
+  for (const auto& p : poses) {
+    exact[p.image] = &p;
+    by_file[std::filesystem::path(p.image).filename().string()].push_back(&p);
+  }
+  for (const auto& name : images) {
+    if (const auto it = exact.find(name); it != exact.end()) {
+      pose_of[name] = it->second;
+    } else if (const auto f = by_file.find(std::filesystem::path(name).filename().string());
+               f != by_file.end() && f->second.size() == 1) {
+      pose_of[name] = f->second.front();
+    } else {
+      throw InputError(name, 0, "no pose for this image in --poses");
     }
   }
+  return pose_of;
+}
+
+void check_id_collisions(const std::vector<ImageData>& data, const MatchInputs& in, const MatchOptions& o) {
   for (const auto& d : data) {
     for (PointId id : d.coded_ids) {
       if (id >= o.feature_track_offset && !in.features.empty()) {
@@ -341,15 +315,13 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
       }
     }
   }
+}
 
-  // With known poses the features are matched along epipolar lines (match_guided), otherwise by
-  // kd-tree search over all of them.
-  const bool guided = o.guided && !in.poses.empty();
-  constexpr double kGuidedCellPx = 8;  // grid cell: ~0.4 features per cell at 20 000 per photo
-  // Undistort, and index the descriptors (in parallel over images).
+// Undistorts the coded points and keypoints, finds each keypoint's canonical copy, and indexes the
+// descriptors: a grid for guided matching, else FLANN's kd-trees (in parallel over images).
+void prepare_images(std::vector<ImageData>& data, const MatchInputs& in, const MatchOptions& o, bool guided) {
   const Undistorter undistort(in.camera);
-  say("indexing " + std::to_string(in.features.size()) + " feature sets");
-  geometry::parallel_for(n, o.jobs, [&](std::size_t i) {
+  geometry::parallel_for(data.size(), o.jobs, [&](std::size_t i) {
     ImageData& d = data[i];
     d.coded_ideal = undistort.apply(d.coded_px);
     if (!d.features) return;
@@ -374,18 +346,30 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
       d.index = std::make_unique<cv::flann::Index>(d.descriptors, cv::flann::KDTreeIndexParams(o.flann_trees));
     }
   });
+}
 
-  // Pairs: those sharing coded points, plus the descriptor pairs.
-  std::unordered_map<PointId, std::vector<std::size_t>> seen_in;  // point id -> images
-  for (std::size_t i = 0; i < n; ++i) {
+using ImagesOfPoint = std::unordered_map<PointId, std::vector<std::size_t>>;  // point id -> images
+
+ImagesOfPoint images_of_points(const std::vector<ImageData>& data) {
+  ImagesOfPoint seen_in;
+  for (std::size_t i = 0; i < data.size(); ++i) {
     for (PointId id : data[i].coded_ids) seen_in[id].push_back(i);
   }
+  return seen_in;
+}
+
+// Pairs: those sharing coded points, plus the descriptor pairs (with poses and guided matching:
+// every pair of feature images whose optical axes are close enough).
+std::vector<std::pair<std::size_t, std::size_t>> select_pairs(
+    const std::vector<ImageData>& data, const ImagesOfPoint& seen_in, const std::vector<std::string>& images,
+    const std::unordered_map<std::string, const Pose*>& pose_of, const MatchOptions& o, bool guided) {
+  const std::size_t n = data.size();
   std::vector<std::vector<int>> overlap(n, std::vector<int>(n, 0));
-  for (const auto& [id, images] : seen_in) {
-    for (std::size_t x = 0; x < images.size(); ++x) {
-      for (std::size_t y = x + 1; y < images.size(); ++y) {
-        ++overlap[images[x]][images[y]];
-        ++overlap[images[y]][images[x]];
+  for (const auto& [id, seen] : seen_in) {
+    for (std::size_t x = 0; x < seen.size(); ++x) {
+      for (std::size_t y = x + 1; y < seen.size(); ++y) {
+        ++overlap[seen[x]][seen[y]];
+        ++overlap[seen[y]][seen[x]];
       }
     }
   }
@@ -399,7 +383,7 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
     // Optical axis in the world: the third row of R (cam_from_world), R^T (0, 0, 1).
     const double min_cos = std::cos(o.guided_max_axis_angle_deg * std::numbers::pi / 180);
     std::vector<Eigen::Vector3d> axis(n);
-    for (std::size_t i = 0; i < n; ++i) axis[i] = pose_of.at(result.images[i])->rotation().row(2).transpose();
+    for (std::size_t i = 0; i < n; ++i) axis[i] = pose_of.at(images[i])->rotation().row(2).transpose();
     for (std::size_t a = 0; a < n; ++a) {
       for (std::size_t b = a + 1; b < n; ++b) {
         if (data[a].features && data[b].features && axis[a].dot(axis[b]) >= min_cos) pair_set.emplace(a, b);
@@ -416,92 +400,92 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
       pair_set.emplace(with_features[x], with_features[y]);
     }
   }
-  const std::vector<std::pair<std::size_t, std::size_t>> pairs(pair_set.begin(), pair_set.end());
+  return {pair_set.begin(), pair_set.end()};
+}
 
-  // Match and verify every pair.
-  say("matching " + std::to_string(pairs.size()) + " image pairs");
-  std::vector<PairWork> work(pairs.size());
-  std::atomic<std::size_t> done{0};
-  std::mutex say_mutex;
-  geometry::parallel_for(pairs.size(), o.jobs, [&](std::size_t k) {
-    const auto [ia, ib] = pairs[k];
-    ImageData& a = data[ia];
-    ImageData& b = data[ib];
-    PairWork& w = work[k];
-    w.report.a = ia;
-    w.report.b = ib;
-    std::vector<Eigen::Vector2d> pa, pb;
-    for (std::size_t i = 0; i < a.coded_ids.size(); ++i) {
-      const auto it = b.coded_index.find(a.coded_ids[i]);
-      if (it == b.coded_index.end()) continue;
-      // (A point where the camera's distortion cannot be inverted is NaN: left out.)
-      if (!a.coded_ideal[i].allFinite() || !b.coded_ideal[it->second].allFinite()) continue;
-      pa.push_back(a.coded_ideal[i]);
-      pb.push_back(b.coded_ideal[it->second]);
-    }
-    w.report.coded_shared = static_cast<int>(pa.size());
-    std::vector<FeatureMatch> matches;
-    if (guided) {
-      w.F = fundamental_from_poses(in.camera->camera_matrix, *pose_of.at(result.images[ia]), *pose_of.at(result.images[ib]));
-      if (a.features && b.features) matches = match_guided(a, b, *w.F, o);
-    } else if (a.index && b.index) {
-      matches = match_descriptors(a, b, o);
-    }
-    std::erase_if(matches, [&](const FeatureMatch& m) {
-      return !a.feature_ideal[static_cast<std::size_t>(m.a)].allFinite() ||
-             !b.feature_ideal[static_cast<std::size_t>(m.b)].allFinite();
-    });
-    w.report.feature_matches = static_cast<int>(matches.size());
-    for (const auto& m : matches) {
-      pa.push_back(a.feature_ideal[static_cast<std::size_t>(m.a)]);
-      pb.push_back(b.feature_ideal[static_cast<std::size_t>(m.b)]);
-    }
-    std::vector<bool> inlier(pa.size(), false);
-    if (!in.poses.empty()) {
-      w.F = fundamental_from_poses(in.camera->camera_matrix, *pose_of.at(result.images[ia]), *pose_of.at(result.images[ib]));
-      w.report.from_poses = true;
-      for (std::size_t i = 0; i < pa.size(); ++i) inlier[i] = sampson_distance_px(*w.F, pa[i], pb[i]) <= o.fit.threshold_px;
-    } else if (const auto fit = estimate_fundamental(pa, pb, o.fit)) {
-      w.F = fit->F;
-      inlier = fit->inliers;
-    }
-    w.report.verified = w.F.has_value();
-    if (w.F) {
-      for (int i = 0; i < w.report.coded_shared; ++i) w.report.coded_inliers += inlier[static_cast<std::size_t>(i)] ? 1 : 0;
-      for (std::size_t m = 0; m < matches.size(); ++m) {
-        if (inlier[static_cast<std::size_t>(w.report.coded_shared) + m]) w.inlier_matches.push_back(matches[m]);
-      }
-      w.report.feature_inliers = static_cast<int>(w.inlier_matches.size());
-    }
-    // With poses F needs no matches, but a pair whose matches agree with it fewer than
-    // --min-inliers times is no verified pair: its feature matches are chance agreements along
-    // the epipolar lines. (F still judges its coded points, which carry their ids.)
-    if (w.report.from_poses && w.report.coded_inliers + w.report.feature_inliers < o.fit.min_inliers) {
-      w.report.verified = false;
-      w.inlier_matches.clear();
-      w.report.feature_inliers = 0;
-    }
-    const std::size_t finished = ++done;
-    if (progress && (finished % 10 == 0 || finished == pairs.size())) {
-      const std::lock_guard<std::mutex> lock(say_mutex);
-      say("pairs: " + std::to_string(finished) + "/" + std::to_string(pairs.size()));
-    }
-  });
-  std::map<std::pair<std::size_t, std::size_t>, const PairWork*> by_pair;
-  for (const auto& w : work) {
-    result.pairs.push_back(w.report);
-    by_pair[{w.report.a, w.report.b}] = &w;
+// Matches and verifies one image pair (a, b): its shared coded points and its feature matches
+// against one F, from the two poses (`pose_a`, `pose_b`, both given or neither) or estimated.
+PairWork match_pair(ImageData& a, ImageData& b, const Pose* pose_a, const Pose* pose_b, const MatchInputs& in,
+                    const MatchOptions& o, bool guided) {
+  PairWork w;
+  std::vector<Eigen::Vector2d> pa, pb;
+  for (std::size_t i = 0; i < a.coded_ids.size(); ++i) {
+    const auto it = b.coded_index.find(a.coded_ids[i]);
+    if (it == b.coded_index.end()) continue;
+    // (A point where the camera's distortion cannot be inverted is NaN: left out.)
+    if (!a.coded_ideal[i].allFinite() || !b.coded_ideal[it->second].allFinite()) continue;
+    pa.push_back(a.coded_ideal[i]);
+    pb.push_back(b.coded_ideal[it->second]);
   }
-  // Pairwise verdict of two observations (image, undistorted position) of one track.
-  auto agree = [&](std::size_t ia, const Eigen::Vector2d& xa, std::size_t ib, const Eigen::Vector2d& xb) -> std::optional<bool> {
-    const bool swap = ia > ib;
-    const auto it = by_pair.find(swap ? std::make_pair(ib, ia) : std::make_pair(ia, ib));
-    if (it == by_pair.end() || !it->second->F) return std::nullopt;
-    const double d = swap ? sampson_distance_px(*it->second->F, xb, xa) : sampson_distance_px(*it->second->F, xa, xb);
-    return d <= o.fit.threshold_px;
-  };
+  w.report.coded_shared = static_cast<int>(pa.size());
+  std::vector<FeatureMatch> matches;
+  if (guided) {
+    w.F = fundamental_from_poses(in.camera->camera_matrix, *pose_a, *pose_b);
+    if (a.features && b.features) matches = match_guided(a, b, *w.F, o);
+  } else if (a.index && b.index) {
+    matches = match_descriptors(a, b, o);
+  }
+  std::erase_if(matches, [&](const FeatureMatch& m) {
+    return !a.feature_ideal[static_cast<std::size_t>(m.a)].allFinite() ||
+           !b.feature_ideal[static_cast<std::size_t>(m.b)].allFinite();
+  });
+  w.report.feature_matches = static_cast<int>(matches.size());
+  for (const auto& m : matches) {
+    pa.push_back(a.feature_ideal[static_cast<std::size_t>(m.a)]);
+    pb.push_back(b.feature_ideal[static_cast<std::size_t>(m.b)]);
+  }
+  std::vector<bool> inlier(pa.size(), false);
+  if (!in.poses.empty()) {
+    w.F = fundamental_from_poses(in.camera->camera_matrix, *pose_a, *pose_b);
+    w.report.from_poses = true;
+    for (std::size_t i = 0; i < pa.size(); ++i) inlier[i] = sampson_distance_px(*w.F, pa[i], pb[i]) <= o.fit.threshold_px;
+  } else if (const auto fit = estimate_fundamental(pa, pb, o.fit)) {
+    w.F = fit->F;
+    inlier = fit->inliers;
+  }
+  w.report.verified = w.F.has_value();
+  if (w.F) {
+    for (int i = 0; i < w.report.coded_shared; ++i) w.report.coded_inliers += inlier[static_cast<std::size_t>(i)] ? 1 : 0;
+    for (std::size_t m = 0; m < matches.size(); ++m) {
+      if (inlier[static_cast<std::size_t>(w.report.coded_shared) + m]) w.inlier_matches.push_back(matches[m]);
+    }
+    w.report.feature_inliers = static_cast<int>(w.inlier_matches.size());
+  }
+  // With poses F needs no matches, but a pair whose matches agree with it fewer than
+  // --min-inliers times is no verified pair: its feature matches are chance agreements along
+  // the epipolar lines. (F still judges its coded points, which carry their ids.)
+  if (w.report.from_poses && w.report.coded_inliers + w.report.feature_inliers < o.fit.min_inliers) {
+    w.report.verified = false;
+    w.inlier_matches.clear();
+    w.report.feature_inliers = 0;
+  }
+  return w;
+}
 
-  // Coded tracks: group by id, vote.
+// Pairwise verdict of two observations (image, undistorted position) of one track: the Sampson
+// distance to the F of their image pair within the threshold; nullopt when the pair has no F.
+class PairVerdicts {
+ public:
+  PairVerdicts(const std::vector<PairWork>& work, double threshold_px) : threshold_px_(threshold_px) {
+    for (const auto& w : work) by_pair_[{w.report.a, w.report.b}] = &w;
+  }
+  std::optional<bool> operator()(std::size_t ia, const Eigen::Vector2d& xa, std::size_t ib,
+                                 const Eigen::Vector2d& xb) const {
+    const bool swap = ia > ib;
+    const auto it = by_pair_.find(swap ? std::make_pair(ib, ia) : std::make_pair(ia, ib));
+    if (it == by_pair_.end() || !it->second->F) return std::nullopt;
+    const double d = swap ? sampson_distance_px(*it->second->F, xb, xa) : sampson_distance_px(*it->second->F, xa, xb);
+    return d <= threshold_px_;
+  }
+
+ private:
+  std::map<std::pair<std::size_t, std::size_t>, const PairWork*> by_pair_;
+  double threshold_px_;
+};
+
+// Coded tracks: group by id, vote; into result.tracks, the observations dropped into result.dropped.
+void coded_tracks(const ImagesOfPoint& seen_in, const std::vector<ImageData>& data, const PairVerdicts& agree,
+                  const MatchOptions& o, MatchResult& result) {
   std::vector<PointId> coded_ids;
   for (const auto& [id, images] : seen_in) coded_ids.push_back(id);
   std::sort(coded_ids.begin(), coded_ids.end());
@@ -539,129 +523,241 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
       result.tracks.push_back({id, result.images[images[k]], p.x(), p.y()});
     }
   }
+}
 
-  // Natural-feature tracks: union-find over the verified matches, then the same vote.
-  if (!in.features.empty()) {
-    say("building feature tracks");
-    std::vector<MatchEdge> edges;
-    for (const auto& w : work) {
-      const ImageData& a = data[w.report.a];
-      const ImageData& b = data[w.report.b];
-      for (const auto& m : w.inlier_matches) {
-        edges.push_back({{static_cast<int>(w.report.a), a.canonical[static_cast<std::size_t>(m.a)]},
-                         {static_cast<int>(w.report.b), b.canonical[static_cast<std::size_t>(m.b)]}, m.cost});
+// Natural-feature tracks: union-find over the verified matches, then the same vote; the tracks
+// still at least `min_length` long.
+std::vector<std::vector<FeatureRef>> voted_feature_tracks(const std::vector<PairWork>& work,
+                                                          const std::vector<ImageData>& data, const PairVerdicts& agree,
+                                                          const MatchOptions& o, std::size_t min_length,
+                                                          MatchResult& result) {
+  std::vector<MatchEdge> edges;
+  for (const auto& w : work) {
+    const ImageData& a = data[w.report.a];
+    const ImageData& b = data[w.report.b];
+    for (const auto& m : w.inlier_matches) {
+      edges.push_back({{static_cast<int>(w.report.a), a.canonical[static_cast<std::size_t>(m.a)]},
+                       {static_cast<int>(w.report.b), b.canonical[static_cast<std::size_t>(m.b)]}, m.cost});
+    }
+  }
+  const auto tracks = build_tracks(std::move(edges), o.min_track_length, &result.feature_unions);
+  std::vector<std::vector<FeatureRef>> voted;
+  for (const auto& t : tracks) {
+    auto pos = [&](std::size_t k) {
+      return data[static_cast<std::size_t>(t[k].image)].feature_ideal[static_cast<std::size_t>(t[k].feature)];
+    };
+    const auto kept = vote_track(t.size(), [&](std::size_t x, std::size_t y) {
+      return agree(static_cast<std::size_t>(t[x].image), pos(x), static_cast<std::size_t>(t[y].image), pos(y));
+    });
+    result.feature_observations_voted_out += t.size() - kept.size();
+    if (kept.size() < min_length) continue;
+    std::vector<FeatureRef> v;
+    for (std::size_t k : kept) v.push_back(t[k]);
+    voted.push_back(std::move(v));
+  }
+  return voted;
+}
+
+const Keypoint& keypoint(const std::vector<ImageData>& data, const FeatureRef& f) {
+  return data[static_cast<std::size_t>(f.image)].features->keypoints[static_cast<std::size_t>(f.feature)];
+}
+
+// Least-squares matching of one track: every observation against the one with the smallest
+// feature (finest detail), which stays where SIFT put it and so names the surface point. The
+// start is the similarity the two keypoints imply (size ratio, orientation difference); as
+// OpenCV's angle sense and a blob's several orientations (copies) leave the rotation open, the
+// candidate with the best window correlation starts the alignment.
+std::vector<std::optional<Eigen::Vector2d>> refine_track(const std::vector<ImageData>& data,
+                                                         const std::vector<FeatureRef>& t, const LsmOptions& lo,
+                                                         std::map<std::string, std::size_t>& refused) {
+  std::vector<std::optional<Eigen::Vector2d>> out(t.size());
+  std::size_t r = 0;
+  for (std::size_t j = 1; j < t.size(); ++j) {
+    if (keypoint(data, t[j]).size_px < keypoint(data, t[r]).size_px) r = j;
+  }
+  const ImageData& dr = data[static_cast<std::size_t>(t[r].image)];
+  const Keypoint& kr = keypoint(data, t[r]);
+  const Eigen::Vector2d ref(kr.x_px, kr.y_px);
+  out[r] = ref;
+  const int h = half_window_for(kr.size_px, lo);
+  for (std::size_t j = 0; j < t.size(); ++j) {
+    if (j == r) continue;
+    const ImageData& dj = data[static_cast<std::size_t>(t[j].image)];
+    const Keypoint& kj = keypoint(data, t[j]);
+    const Eigen::Vector2d start(kj.x_px, kj.y_px);
+    const double zoom = kr.size_px > 0 && kj.size_px > 0 ? kj.size_px / kr.size_px : 1.0;
+    std::vector<double> turns{0.0};
+    for (int a : dr.copies.at(t[r].feature)) {
+      for (int b : dj.copies.at(t[j].feature)) {
+        const double aa = dr.features->keypoints[static_cast<std::size_t>(a)].angle_deg;
+        const double ab = dj.features->keypoints[static_cast<std::size_t>(b)].angle_deg;
+        if (aa < 0 || ab < 0) continue;
+        const double turn = (ab - aa) * std::numbers::pi / 180;
+        turns.push_back(turn);
+        turns.push_back(-turn);
       }
     }
-    const auto tracks = build_tracks(std::move(edges), o.min_track_length, &result.feature_unions);
-    const std::size_t min_length = std::max<std::size_t>(o.min_track_length, 2);
-    std::vector<std::vector<FeatureRef>> voted;
-    for (const auto& t : tracks) {
-      auto pos = [&](std::size_t k) {
-        return data[static_cast<std::size_t>(t[k].image)].feature_ideal[static_cast<std::size_t>(t[k].feature)];
-      };
-      const auto kept = vote_track(t.size(), [&](std::size_t x, std::size_t y) {
-        return agree(static_cast<std::size_t>(t[x].image), pos(x), static_cast<std::size_t>(t[y].image), pos(y));
-      });
-      result.feature_observations_voted_out += t.size() - kept.size();
-      if (kept.size() < min_length) continue;
-      std::vector<FeatureRef> v;
-      for (std::size_t k : kept) v.push_back(t[k]);
-      voted.push_back(std::move(v));
+    Eigen::Matrix2d best_A = zoom * Eigen::Matrix2d::Identity();
+    double best = -2;
+    for (double turn : turns) {
+      const Eigen::Matrix2d A = zoom * Eigen::Rotation2Dd(turn).toRotationMatrix();
+      const auto c = window_correlation(*dr.grey, ref, h, *dj.grey, A, start, 2);
+      if (c && *c > best) {
+        best = *c;
+        best_A = A;
+      }
     }
-    auto keypoint = [&](const FeatureRef& f) -> const Keypoint& {
-      return data[static_cast<std::size_t>(f.image)].features->keypoints[static_cast<std::size_t>(f.feature)];
-    };
-    // Least-squares matching of one track: every observation against the one with the smallest
-    // feature (finest detail), which stays where SIFT put it and so names the surface point. The
-    // start is the similarity the two keypoints imply (size ratio, orientation difference); as
-    // OpenCV's angle sense and a blob's several orientations (copies) leave the rotation open, the
-    // candidate with the best window correlation starts the alignment.
-    auto refine_track = [&](const std::vector<FeatureRef>& t, const LsmOptions& lo, std::map<std::string, std::size_t>& refused) {
-      std::vector<std::optional<Eigen::Vector2d>> out(t.size());
-      std::size_t r = 0;
-      for (std::size_t j = 1; j < t.size(); ++j) {
-        if (keypoint(t[j]).size_px < keypoint(t[r]).size_px) r = j;
-      }
-      const ImageData& dr = data[static_cast<std::size_t>(t[r].image)];
-      const Keypoint& kr = keypoint(t[r]);
-      const Eigen::Vector2d ref(kr.x_px, kr.y_px);
-      out[r] = ref;
-      const int h = half_window_for(kr.size_px, lo);
-      for (std::size_t j = 0; j < t.size(); ++j) {
-        if (j == r) continue;
-        const ImageData& dj = data[static_cast<std::size_t>(t[j].image)];
-        const Keypoint& kj = keypoint(t[j]);
-        const Eigen::Vector2d start(kj.x_px, kj.y_px);
-        const double zoom = kr.size_px > 0 && kj.size_px > 0 ? kj.size_px / kr.size_px : 1.0;
-        std::vector<double> turns{0.0};
-        for (int a : dr.copies.at(t[r].feature)) {
-          for (int b : dj.copies.at(t[j].feature)) {
-            const double aa = dr.features->keypoints[static_cast<std::size_t>(a)].angle_deg;
-            const double ab = dj.features->keypoints[static_cast<std::size_t>(b)].angle_deg;
-            if (aa < 0 || ab < 0) continue;
-            const double turn = (ab - aa) * std::numbers::pi / 180;
-            turns.push_back(turn);
-            turns.push_back(-turn);
-          }
-        }
-        Eigen::Matrix2d best_A = zoom * Eigen::Matrix2d::Identity();
-        double best = -2;
-        for (double turn : turns) {
-          const Eigen::Matrix2d A = zoom * Eigen::Rotation2Dd(turn).toRotationMatrix();
-          const auto c = window_correlation(*dr.grey, ref, h, *dj.grey, A, start, 2);
-          if (c && *c > best) {
-            best = *c;
-            best_A = A;
-          }
-        }
-        LsmFailure why = LsmFailure::None;
-        if (const auto fit = lsm_align(*dr.grey, ref, h, *dj.grey, best_A, start, lo, &why)) {
-          out[j] = fit->point_px;
-        } else {
-          ++refused[to_string(why)];
-        }
-      }
-      return out;
-    };
-    // Positions written per observation: the keypoint's, or the refined one.
-    std::vector<std::vector<std::optional<Eigen::Vector2d>>> refined(voted.size());
+    LsmFailure why = LsmFailure::None;
+    if (const auto fit = lsm_align(*dr.grey, ref, h, *dj.grey, best_A, start, lo, &why)) {
+      out[j] = fit->point_px;
+    } else {
+      ++refused[to_string(why)];
+    }
+  }
+  return out;
+}
+
+// Writes the voted feature tracks into result.tracks, numbered from --feature-id-offset up: each
+// observation at its keypoint (with its size) or, with `refined` (one entry per track, from
+// refine_track), at its refined position, dropping the observations LSM refused and the tracks
+// then shorter than `min_length`.
+void write_feature_tracks(const std::vector<std::vector<FeatureRef>>& voted,
+                          const std::vector<std::vector<std::optional<Eigen::Vector2d>>>& refined,
+                          const std::vector<ImageData>& data, const MatchOptions& o, std::size_t min_length,
+                          MatchResult& result) {
+  TrackId next_id = o.feature_track_offset;
+  for (std::size_t k = 0; k < voted.size(); ++k) {
+    const auto& t = voted[k];
+    std::size_t length = t.size();
     if (o.refine) {
-      say("least-squares matching of " + std::to_string(voted.size()) + " feature tracks");
-      std::vector<std::map<std::string, std::size_t>> refused(voted.size());
-      geometry::parallel_for(voted.size(), o.jobs, [&](std::size_t k) {
-        refined[k] = refine_track(voted[k], *o.refine, refused[k]);
-      });
-      for (const auto& r : refused) {
-        for (const auto& [why, count] : r) result.refine_refused[why] += count;
+      length = static_cast<std::size_t>(std::count_if(refined[k].begin(), refined[k].end(), [](const auto& p) { return p.has_value(); }));
+      if (length < min_length) {
+        ++result.refine_tracks_dropped;
+        continue;
       }
     }
-    TrackId next_id = o.feature_track_offset;
-    for (std::size_t k = 0; k < voted.size(); ++k) {
-      const auto& t = voted[k];
-      std::size_t length = t.size();
+    const TrackId id = next_id++;
+    ++result.feature_tracks;
+    ++result.track_lengths[length];
+    for (std::size_t j = 0; j < t.size(); ++j) {
+      const Keypoint& kp = keypoint(data, t[j]);
+      const std::string& image = result.images[static_cast<std::size_t>(t[j].image)];
       if (o.refine) {
-        length = static_cast<std::size_t>(std::count_if(refined[k].begin(), refined[k].end(), [](const auto& p) { return p.has_value(); }));
-        if (length < min_length) {
-          ++result.refine_tracks_dropped;
-          continue;
-        }
-      }
-      const TrackId id = next_id++;
-      ++result.feature_tracks;
-      ++result.track_lengths[length];
-      for (std::size_t j = 0; j < t.size(); ++j) {
-        const Keypoint& kp = keypoint(t[j]);
-        const std::string& image = result.images[static_cast<std::size_t>(t[j].image)];
-        if (o.refine) {
-          if (!refined[k][j]) continue;
-          ++result.refined_observations;
-          result.tracks.push_back({id, image, refined[k][j]->x(), refined[k][j]->y()});
-        } else {
-          result.tracks.push_back({id, image, kp.x_px, kp.y_px, kp.size_px > 0 ? std::optional<double>(kp.size_px) : std::nullopt});
-        }
+        if (!refined[k][j]) continue;
+        ++result.refined_observations;
+        result.tracks.push_back({id, image, refined[k][j]->x(), refined[k][j]->y()});
+      } else {
+        result.tracks.push_back({id, image, kp.x_px, kp.y_px, kp.size_px > 0 ? std::optional<double>(kp.size_px) : std::nullopt});
       }
     }
   }
+}
+
+// Natural-feature tracks from the pairs' verified matches, least-squares refined with
+// MatchOptions::refine, into `result`.
+void feature_tracks(const std::vector<PairWork>& work, const std::vector<ImageData>& data, const PairVerdicts& agree,
+                    const MatchOptions& o, const std::function<void(const std::string&)>& say, MatchResult& result) {
+  say("building feature tracks");
+  const std::size_t min_length = std::max<std::size_t>(o.min_track_length, 2);
+  const auto voted = voted_feature_tracks(work, data, agree, o, min_length, result);
+  // Positions written per observation: the keypoint's, or the refined one.
+  std::vector<std::vector<std::optional<Eigen::Vector2d>>> refined(voted.size());
+  if (o.refine) {
+    say("least-squares matching of " + std::to_string(voted.size()) + " feature tracks");
+    std::vector<std::map<std::string, std::size_t>> refused(voted.size());
+    geometry::parallel_for(voted.size(), o.jobs, [&](std::size_t k) {
+      refined[k] = refine_track(data, voted[k], *o.refine, refused[k]);
+    });
+    for (const auto& r : refused) {
+      for (const auto& [why, count] : r) result.refine_refused[why] += count;
+    }
+  }
+  write_feature_tracks(voted, refined, data, o, min_length, result);
+}
+
+}  // namespace
+
+std::vector<std::pair<std::size_t, std::size_t>> feature_pairs(
+    std::size_t n, const MatchOptions& o, const std::function<int(std::size_t, std::size_t)>& coded_overlap) {
+  std::set<std::pair<std::size_t, std::size_t>> pairs;
+  if (n <= static_cast<std::size_t>(std::max(o.exhaustive_max_images, 0))) {
+    for (std::size_t a = 0; a < n; ++a) {
+      for (std::size_t b = a + 1; b < n; ++b) pairs.emplace(a, b);
+    }
+    return {pairs.begin(), pairs.end()};
+  }
+  for (std::size_t a = 0; a < n; ++a) {
+    for (int d = 1; d <= o.sequence_neighbours && a + static_cast<std::size_t>(d) < n; ++d) {
+      pairs.emplace(a, a + static_cast<std::size_t>(d));
+    }
+    if (o.coded_neighbours <= 0) continue;
+    std::vector<std::pair<int, std::size_t>> overlap;
+    for (std::size_t b = 0; b < n; ++b) {
+      if (b == a) continue;
+      const int shared = coded_overlap(a, b);
+      if (shared > 0) overlap.emplace_back(-shared, b);
+    }
+    const auto k = std::min<std::size_t>(overlap.size(), static_cast<std::size_t>(o.coded_neighbours));
+    std::partial_sort(overlap.begin(), overlap.begin() + static_cast<std::ptrdiff_t>(k), overlap.end());
+    for (std::size_t m = 0; m < k; ++m) pairs.emplace(std::min(a, overlap[m].second), std::max(a, overlap[m].second));
+  }
+  return {pairs.begin(), pairs.end()};
+}
+
+MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::function<void(const std::string&)>& progress) {
+  auto say = [&](const std::string& m) {
+    if (progress) progress(m);
+  };
+  check_options(in, o);
+
+  MatchResult result;
+  std::unordered_map<std::string, std::size_t> image_index;
+  auto image_of = [&](const std::string& name) {
+    const auto [it, fresh] = image_index.emplace(name, result.images.size());
+    if (fresh) result.images.push_back(name);
+    return it->second;
+  };
+  for (const auto& ob : in.observations) image_of(ob.image);
+  for (const auto& fs : in.features) image_of(fs.image);
+  const std::size_t n = result.images.size();
+  if (n < 2) throw GeometryError("nothing to match: the inputs cover " + std::to_string(n) + " image(s), at least 2 are needed");
+
+  std::vector<ImageData> data = load_images(in, o, image_index, n);
+  const auto pose_of = poses_by_image(in.poses, result.images);
+  check_id_collisions(data, in, o);
+
+  // With known poses the features are matched along epipolar lines (match_guided), otherwise by
+  // kd-tree search over all of them.
+  const bool guided = o.guided && !in.poses.empty();
+  say("indexing " + std::to_string(in.features.size()) + " feature sets");
+  prepare_images(data, in, o, guided);
+
+  const ImagesOfPoint seen_in = images_of_points(data);
+  const auto pairs = select_pairs(data, seen_in, result.images, pose_of, o, guided);
+
+  // Match and verify every pair.
+  say("matching " + std::to_string(pairs.size()) + " image pairs");
+  std::vector<PairWork> work(pairs.size());
+  std::atomic<std::size_t> done{0};
+  std::mutex say_mutex;
+  geometry::parallel_for(pairs.size(), o.jobs, [&](std::size_t k) {
+    const auto [ia, ib] = pairs[k];
+    const Pose* pose_a = pose_of.empty() ? nullptr : pose_of.at(result.images[ia]);
+    const Pose* pose_b = pose_of.empty() ? nullptr : pose_of.at(result.images[ib]);
+    work[k] = match_pair(data[ia], data[ib], pose_a, pose_b, in, o, guided);
+    work[k].report.a = ia;
+    work[k].report.b = ib;
+    const std::size_t finished = ++done;
+    if (progress && (finished % 10 == 0 || finished == pairs.size())) {
+      const std::lock_guard<std::mutex> lock(say_mutex);
+      say("pairs: " + std::to_string(finished) + "/" + std::to_string(pairs.size()));
+    }
+  });
+  for (const auto& w : work) result.pairs.push_back(w.report);
+  const PairVerdicts agree(work, o.fit.threshold_px);
+
+  coded_tracks(seen_in, data, agree, o, result);
+  if (!in.features.empty()) feature_tracks(work, data, agree, o, say, result);
   std::stable_sort(result.tracks.begin(), result.tracks.end(), [&](const TrackObservation& x, const TrackObservation& y) {
     if (x.track_id != y.track_id) return x.track_id < y.track_id;
     return image_index.at(x.image) < image_index.at(y.image);

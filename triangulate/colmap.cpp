@@ -52,6 +52,18 @@ bool linked(const Reconstruction& r, std::size_t o) {
   return r.in_result[ob.track] && ob.usable && ob.inlier && r.scene.images[ob.image].registered;
 }
 
+// How many of an image's or a track's observations are linked.
+std::size_t linked_count(const Reconstruction& r, const std::vector<std::size_t>& observations) {
+  std::size_t n = 0;
+  for (std::size_t o : observations) n += linked(r, o) ? 1 : 0;
+  return n;
+}
+
+// A header's mean per item (observations per image, track length): 0 without items.
+double mean_per_item(std::size_t total, std::size_t items) {
+  return items ? static_cast<double>(total) / static_cast<double>(items) : 0.0;
+}
+
 }  // namespace
 
 ColmapCamera to_colmap_camera(const Camera& camera, const std::string& source) {
@@ -99,13 +111,13 @@ void write_colmap_images(std::ostream& out, const Reconstruction& r) {
     if (!ids.image_id[i]) continue;
     check_name(s.images[i].name);
     ++registered;
-    for (std::size_t o : s.images[i].observations) observations += linked(r, o) ? 1 : 0;
+    observations += linked_count(r, s.images[i].observations);
   }
   out << "# Image list with two lines of data per image:\n"
       << "#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n"
       << "#   POINTS2D[] as (X, Y, POINT3D_ID)\n"
       << "# Number of images: " << registered << ", mean observations per image: "
-      << (registered ? static_cast<double>(observations) / static_cast<double>(registered) : 0.0) << "\n";
+      << mean_per_item(observations, registered) << "\n";
   for (std::size_t i = 0; i < s.images.size(); ++i) {
     if (!ids.image_id[i]) continue;
     const Pose p = to_pose(s.images[i].name, s.images[i].cam_from_world);
@@ -136,12 +148,12 @@ void write_colmap_points(std::ostream& out, const Reconstruction& r) {
   for (std::size_t t = 0; t < s.tracks.size(); ++t) {
     if (!r.in_result[t]) continue;
     ++points;
-    for (std::size_t o : s.tracks[t].observations) length += linked(r, o) ? 1 : 0;
+    length += linked_count(r, s.tracks[t].observations);
   }
   out << "# 3D point list with one line of data per point:\n"
       << "#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] as (IMAGE_ID, POINT2D_IDX)\n"
       << "# Number of points: " << points << ", mean track length: "
-      << (points ? static_cast<double>(length) / static_cast<double>(points) : 0.0) << "\n";
+      << mean_per_item(length, points) << "\n";
   for (std::size_t t = 0; t < s.tracks.size(); ++t) {
     if (!r.in_result[t]) continue;
     const SceneTrack& track = s.tracks[t];
