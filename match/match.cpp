@@ -358,9 +358,17 @@ ImagesOfPoint images_of_points(const std::vector<ImageData>& data) {
   return seen_in;
 }
 
-// Pairs: those sharing coded points, plus the descriptor pairs (with poses and guided matching:
-// every pair of feature images whose optical axes are close enough).
-std::vector<std::pair<std::size_t, std::size_t>> select_pairs(
+// An image pair to look at; `features`: its natural features are matched too.
+struct ImagePair {
+  std::size_t a = 0, b = 0;
+  bool features = false;
+};
+
+// Pairs: those sharing coded points (their coded points verified), plus the descriptor pairs
+// (feature_pairs: exhaustive, sequence and coded neighbours); with poses and guided matching,
+// every pair sharing coded points and every pair of feature images whose optical axes are close
+// enough, all matched along the epipolar lines.
+std::vector<ImagePair> select_pairs(
     const std::vector<ImageData>& data, const ImagesOfPoint& seen_in, const std::vector<std::string>& images,
     const std::unordered_map<std::string, const Pose*>& pose_of, const MatchOptions& o, bool guided) {
   const std::size_t n = data.size();
@@ -373,10 +381,10 @@ std::vector<std::pair<std::size_t, std::size_t>> select_pairs(
       }
     }
   }
-  std::set<std::pair<std::size_t, std::size_t>> pair_set;
+  std::map<std::pair<std::size_t, std::size_t>, bool> pair_set;  // (a, b) -> match its features
   for (std::size_t a = 0; a < n; ++a) {
     for (std::size_t b = a + 1; b < n; ++b) {
-      if (overlap[a][b] > 0) pair_set.emplace(a, b);
+      if (overlap[a][b] > 0) pair_set[{a, b}] = guided;
     }
   }
   if (guided) {
@@ -386,7 +394,7 @@ std::vector<std::pair<std::size_t, std::size_t>> select_pairs(
     for (std::size_t i = 0; i < n; ++i) axis[i] = pose_of.at(images[i])->rotation().row(2).transpose();
     for (std::size_t a = 0; a < n; ++a) {
       for (std::size_t b = a + 1; b < n; ++b) {
-        if (data[a].features && data[b].features && axis[a].dot(axis[b]) >= min_cos) pair_set.emplace(a, b);
+        if (data[a].features && data[b].features && axis[a].dot(axis[b]) >= min_cos) pair_set[{a, b}] = true;
       }
     }
   } else {
@@ -397,16 +405,18 @@ std::vector<std::pair<std::size_t, std::size_t>> select_pairs(
     for (const auto& [x, y] : feature_pairs(with_features.size(), o, [&](std::size_t p, std::size_t q) {
            return overlap[with_features[p]][with_features[q]];
          })) {
-      pair_set.emplace(with_features[x], with_features[y]);
+      pair_set[{with_features[x], with_features[y]}] = true;
     }
   }
-  return {pair_set.begin(), pair_set.end()};
+  std::vector<ImagePair> pairs;
+  for (const auto& [ab, features] : pair_set) pairs.push_back({ab.first, ab.second, features});
+  return pairs;
 }
 
 // Matches and verifies one image pair (a, b): its shared coded points and its feature matches
 // against one F, from the two poses (`pose_a`, `pose_b`, both given or neither) or estimated.
 PairWork match_pair(ImageData& a, ImageData& b, const Pose* pose_a, const Pose* pose_b, const MatchInputs& in,
-                    const MatchOptions& o, bool guided) {
+                    const MatchOptions& o, bool guided, bool features) {
   PairWork w;
   std::vector<Eigen::Vector2d> pa, pb;
   for (std::size_t i = 0; i < a.coded_ids.size(); ++i) {
@@ -422,7 +432,7 @@ PairWork match_pair(ImageData& a, ImageData& b, const Pose* pose_a, const Pose* 
   if (guided) {
     w.F = fundamental_from_poses(in.camera->camera_matrix, *pose_a, *pose_b);
     if (a.features && b.features) matches = match_guided(a, b, *w.F, o);
-  } else if (a.index && b.index) {
+  } else if (features && a.index && b.index) {
     matches = match_descriptors(a, b, o);
   }
   std::erase_if(matches, [&](const FeatureMatch& m) {
@@ -741,10 +751,10 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
   std::atomic<std::size_t> done{0};
   std::mutex say_mutex;
   geometry::parallel_for(pairs.size(), o.jobs, [&](std::size_t k) {
-    const auto [ia, ib] = pairs[k];
+    const auto [ia, ib, features] = pairs[k];
     const Pose* pose_a = pose_of.empty() ? nullptr : pose_of.at(result.images[ia]);
     const Pose* pose_b = pose_of.empty() ? nullptr : pose_of.at(result.images[ib]);
-    work[k] = match_pair(data[ia], data[ib], pose_a, pose_b, in, o, guided);
+    work[k] = match_pair(data[ia], data[ib], pose_a, pose_b, in, o, guided, features);
     work[k].report.a = ia;
     work[k].report.b = ib;
     const std::size_t finished = ++done;

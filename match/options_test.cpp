@@ -256,9 +256,6 @@ INSTANTIATE_TEST_SUITE_P(
         OptionCase{"coded_neighbours", features({"--refine", "none", "--exhaustive-max-images", "0", "--sequence-neighbours",
                                                  "0", "--coded-neighbours", "2"}), 0, "",
                    [](const Outcome& r) {
-                     GTEST_SKIP() << "issue: --coded-neighbours has no effect: every pair of photos sharing a coded "
-                                     "point is matched by descriptor anyway (match.cpp's pair_set), so the N photos "
-                                     "sharing most coded points are always among the pairs";
                      // Each image matched by descriptor with the 2 sharing most markers: all three pairs.
                      const Outcome none = match(features({"--refine", "none", "--exhaustive-max-images", "0",
                                                       "--sequence-neighbours", "0", "--coded-neighbours", "0"}));
