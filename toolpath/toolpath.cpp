@@ -74,71 +74,49 @@ std::vector<Eigen::Vector3d> link_points(const Eigen::Vector3d& a, const Eigen::
   return out;
 }
 
-}  // namespace
 
-void validate(const ToolpathOptions& o) {
-  const auto finite_pos = [](double v) { return std::isfinite(v) && v > 0; };
-  const auto finite_nonneg = [](double v) { return std::isfinite(v) && v >= 0; };
-  require(finite_pos(o.tool_radius_mm), "--tool-radius-mm must be > 0");
-  require(finite_pos(o.scallop_mm), "--scallop-mm must be > 0");
-  require(o.scallop_mm < o.tool_radius_mm, "--scallop-mm must be below the tool radius");
-  require(finite_pos(o.chord_tol_mm), "--chord-tol-mm must be > 0");
-  require(o.chord_tol_mm < o.scallop_mm,
-          "--chord-tol-mm (" + mm(o.chord_tol_mm) + ") must be below --scallop-mm (" + mm(o.scallop_mm) +
-              "): in concave regions the chords leave up to e of material, and the side step uses what remains of h");
-  require(finite_pos(o.gouge_tol_mm), "--gouge-tol-mm must be > 0");
-  require(finite_nonneg(o.stock_mm), "--stock-mm must be >= 0");
-  require(finite_pos(o.max_step_mm), "--max-step-mm must be > 0");
-  require(finite_pos(o.feed_mm_per_min), "--feed-mm-per-min must be > 0");
-  require(finite_pos(o.plunge_feed_mm_per_min), "--plunge-feed-mm-per-min must be > 0");
-  require(!o.safe_z_mm || std::isfinite(*o.safe_z_mm), "--safe-z-mm must be a finite number");
-  require(finite_nonneg(o.retract_mm), "--retract-mm must be >= 0");
-  require(finite_nonneg(o.clearance_mm), "--clearance-mm must be >= 0");
-  require(finite_pos(o.drop_sample_mm), "--drop-sample-mm must be > 0");
-  require(finite_pos(o.side_sample_mm), "--side-sample-mm must be > 0");
-  require(o.threads >= 0, "--threads must be >= 0");
-  require(!o.spindle_rpm || finite_pos(*o.spindle_rpm), "--spindle-rpm must be > 0");
-  require(o.part_name.find_first_of("\r\n") == std::string::npos, "--part-name must be one line");
-}
-
-ToolpathResult generate_toolpath(const BSplineSurface& surface, const ToolpathOptions& o) {
-  validate(o);
-  const auto start = std::chrono::steady_clock::now();
-  ToolpathResult result;
-  const double R = o.tool_radius_mm;
-  const double r = R + o.stock_mm;  // radius of the ball the centres are computed for
-
-  // Steps 1, 5, 6: the pass lines.
+PassPlanOptions pass_plan_options(const ToolpathOptions& o) {
   PassPlanOptions plan;
   plan.direction = o.direction;
-  plan.tool_radius_mm = R;
+  plan.tool_radius_mm = o.tool_radius_mm;
   plan.scallop_mm = o.scallop_mm;
   plan.chord_tol_mm = o.chord_tol_mm;
   plan.stock_mm = o.stock_mm;
   plan.max_step_mm = o.max_step_mm;
   plan.sample_mm = o.side_sample_mm;
   plan.threads = o.threads;
-  result.lines = plan_passes(surface, plan);
+  return plan;
+}
 
-  const DropCutter drop(surface, r, o.drop_sample_mm);
+CutterOptions cutter_options(const ToolpathOptions& o) {
   CutterOptions cutter;
-  cutter.tool_radius_mm = R;
+  cutter.tool_radius_mm = o.tool_radius_mm;
   cutter.stock_mm = o.stock_mm;
   cutter.gouge_tol_mm = o.gouge_tol_mm;
   cutter.lift = o.lift;
   cutter.sample_mm = o.drop_sample_mm;
+  return cutter;
+}
+
+ForwardStepOptions forward_step_options(const ToolpathOptions& o) {
   ForwardStepOptions forward;
   forward.chord_tol_mm = o.chord_tol_mm;
   forward.gouge_tol_mm = o.gouge_tol_mm;
   forward.max_step_mm = o.max_step_mm;
   forward.enforce_gouge = o.lift;
+  return forward;
+}
 
-  // The pieces in machining order: zig-zag reverses every other line.
+// The pieces in machining order: zig-zag reverses every other line. Then the edge passes along
+// slanted domain edges (without a boundary polygon, whose edges the passes overrun instead): the
+// edge nearer to where the last pass ended first; `edge_passes` counts them.
+std::vector<WorkItem> work_items(const BSplineSurface& surface, const ToolpathOptions& o, const std::vector<PassLine>& lines,
+                                 std::size_t& edge_passes) {
   std::vector<WorkItem> items;
-  for (std::size_t k = 0; k < result.lines.size(); ++k) {
-    const auto& ivs = result.lines[k].intervals;
+  for (std::size_t k = 0; k < lines.size(); ++k) {
+    const auto& ivs = lines[k].intervals;
     const bool reverse = o.pattern == Pattern::ZigZag && k % 2 == 1;
-    const double w = result.lines[k].w;
+    const double w = lines[k].w;
     if (!reverse) {
       for (const Interval& iv : ivs) items.push_back({k, o.direction, w, iv.t0, iv.t1});
     } else {
@@ -146,8 +124,6 @@ ToolpathResult generate_toolpath(const BSplineSurface& surface, const ToolpathOp
     }
   }
   if (items.empty()) throw GeometryError("no pass crosses the inside of the boundary polygon");
-  // Edge passes along slanted domain edges (without a boundary polygon, whose edges the passes
-  // overrun instead): the edge nearer to where the last pass ended first.
   if (surface.boundary_uv.empty()) {
     const auto [t0, t1] = along_domain(surface, o.direction);
     const auto [w0, w1] = across_domain(surface, o.direction);
@@ -155,32 +131,52 @@ ToolpathResult generate_toolpath(const BSplineSurface& surface, const ToolpathOp
     const bool ended_high = items.back().t_to == t1;
     bool downwards = true;  // the last line lies at w1: the first edge pass runs back to w0
     for (const double t_end : ended_high ? std::array<double, 2>{t1, t0} : std::array<double, 2>{t0, t1}) {
-      if (!edge_is_slanted(surface, o.direction, t_end, result.lines)) continue;
-      const std::size_t index = result.lines.size() + result.stats.edge_passes++;
+      if (!edge_is_slanted(surface, o.direction, t_end, lines)) continue;
+      const std::size_t index = lines.size() + edge_passes++;
       items.push_back({index, other, t_end, downwards ? w1 : w0, downwards ? w0 : w1});
       downwards = !downwards;
     }
   }
+  return items;
+}
 
-  // Steps 2, 3, 4 (and 7) on every piece, in parallel: each writes only its own slot.
-  std::vector<MarchResult> marched(items.size());
-  geometry::parallel_for(items.size(), geometry::thread_count(o.threads), [&](std::size_t i) {
-    const WorkItem& item = items[i];
-    const IsoCurve curve(surface, item.direction, item.w);
-    marched[i] = march_interval(curve, item.t_from, item.t_to, forward, r,
-                                [&](const PassFrame& f) { return cc_to_cl(f, drop, cutter); });
-  });
-
-  ToolpathStats& st = result.stats;
-  st.passes = result.lines.size();
+// The smallest and largest side step between neighbouring lines (0, 0 without any).
+void side_step_stats(const std::vector<PassLine>& lines, ToolpathStats& st) {
   st.min_side_step_mm = kInf;
   st.max_side_step_mm = 0;
-  for (const PassLine& line : result.lines) {
+  for (const PassLine& line : lines) {
     if (line.across_step <= 0) continue;
     st.min_side_step_mm = std::min(st.min_side_step_mm, line.side_step_mm);
     st.max_side_step_mm = std::max(st.max_side_step_mm, line.side_step_mm);
   }
   if (!std::isfinite(st.min_side_step_mm)) st.min_side_step_mm = 0;
+}
+
+// Point k of `seg`, a gouging one, into the gouge runs: it extends the last run when the point
+// before it on the same pass gouged too, else starts one.
+void add_to_gouge_runs(const PassSegment& seg, std::size_t k, std::vector<GougeRun>& gouges) {
+  const CutterLocation& p = seg.points[k];
+  const bool extend = k > 0 && seg.points[k - 1].gouge && !gouges.empty() && gouges.back().pass == seg.pass;
+  if (!extend) {
+    GougeRun run;
+    run.pass = seg.pass;
+    run.first_cc = p.cc;
+    run.deepest_contact = p.contact;
+    run.min_concave_radius_mm = kInf;
+    gouges.push_back(run);
+  }
+  GougeRun& run = gouges.back();
+  run.last_cc = p.cc;
+  ++run.points;
+  if (p.gouge_depth_mm >= run.max_depth_mm) run.max_depth_mm = p.gouge_depth_mm, run.deepest_contact = p.contact;
+  run.min_concave_radius_mm = std::min(run.min_concave_radius_mm, p.concave_radius_mm);
+  run.lifted = run.lifted || p.lifted;
+}
+
+// The marched pieces into result.segments (their points moved out of `marched`), with the
+// statistics of their steps and gouges; returns the highest tip (-inf without points).
+double collect_segments(const std::vector<WorkItem>& items, std::vector<MarchResult>& marched, ToolpathResult& result) {
+  ToolpathStats& st = result.stats;
   st.min_forward_step_mm = kInf;
   double top_tip = -kInf;
   for (std::size_t i = 0; i < items.size(); ++i) {
@@ -204,22 +200,7 @@ ToolpathResult generate_toolpath(const BSplineSurface& surface, const ToolpathOp
       if (p.gouge) {
         ++st.gouge_points;
         st.max_gouge_depth_mm = std::max(st.max_gouge_depth_mm, p.gouge_depth_mm);
-        const bool extend = k > 0 && seg.points[k - 1].gouge && !result.gouges.empty() &&
-                            result.gouges.back().pass == seg.pass;
-        if (!extend) {
-          GougeRun run;
-          run.pass = seg.pass;
-          run.first_cc = p.cc;
-          run.deepest_contact = p.contact;
-          run.min_concave_radius_mm = kInf;
-          result.gouges.push_back(run);
-        }
-        GougeRun& run = result.gouges.back();
-        run.last_cc = p.cc;
-        ++run.points;
-        if (p.gouge_depth_mm >= run.max_depth_mm) run.max_depth_mm = p.gouge_depth_mm, run.deepest_contact = p.contact;
-        run.min_concave_radius_mm = std::min(run.min_concave_radius_mm, p.concave_radius_mm);
-        run.lifted = run.lifted || p.lifted;
+        add_to_gouge_runs(seg, k, result.gouges);
       }
     }
     st.cl_points += seg.points.size();
@@ -227,22 +208,27 @@ ToolpathResult generate_toolpath(const BSplineSurface& surface, const ToolpathOp
   }
   if (!std::isfinite(st.min_forward_step_mm)) st.min_forward_step_mm = 0;
   st.segments = result.segments.size();
+  return top_tip;
+}
 
-  // Safe plane: above both the surface and the path.
-  const double top = std::max(drop.top_z(), top_tip);
+// Safe plane: above both the surface and the path (`top`, the higher of the two).
+double safe_plane(const ToolpathOptions& o, double top) {
   if (o.safe_z_mm) {
     if (*o.safe_z_mm < top) {
       throw UsageError("--safe-z-mm " + mm(*o.safe_z_mm) + " is below the top of the surface and the path (" + mm(top) +
                        " mm)");
     }
-    st.safe_z_mm = *o.safe_z_mm;
-  } else {
-    st.safe_z_mm = top + o.retract_mm;
+    return *o.safe_z_mm;
   }
+  return top + o.retract_mm;
+}
 
-  // CL moves: rapid to the safe plane, rapid down to the clearance height, plunge at the plunge
-  // feed, cut; between pieces a zig-zag link at cutting feed (consecutive lines, shorter than the
-  // tool diameter) or retract - rapid - plunge.
+// CL moves: rapid to the safe plane, rapid down to the clearance height, plunge at the plunge
+// feed, cut; between pieces a zig-zag link at cutting feed (consecutive lines, shorter than the
+// tool diameter) or retract - rapid - plunge.
+void write_cl_moves(const DropCutter& drop, const ToolpathOptions& o, ToolpathResult& result) {
+  const double R = o.tool_radius_mm;
+  ToolpathStats& st = result.stats;
   ClData& cl = result.cl;
   cl.part_name = o.part_name;
   cl.tool_diameter_mm = 2 * R;
@@ -278,12 +264,75 @@ ToolpathResult generate_toolpath(const BSplineSurface& surface, const ToolpathOp
   }
   const Eigen::Vector3d last = cl.moves.back().tip_mm;
   rapid({last.x(), last.y(), safe});
+}
 
+// The number of moves and the lengths of the feed and the rapid moves.
+void move_stats(const ClData& cl, ToolpathStats& st) {
   st.moves = cl.moves.size();
   for (std::size_t k = 1; k < cl.moves.size(); ++k) {
     const double len = (cl.moves[k].tip_mm - cl.moves[k - 1].tip_mm).norm();
     (cl.moves[k].kind == ClMove::Kind::Feed ? st.feed_length_mm : st.rapid_length_mm) += len;
   }
+}
+
+}  // namespace
+
+void validate(const ToolpathOptions& o) {
+  const auto finite_pos = [](double v) { return std::isfinite(v) && v > 0; };
+  const auto finite_nonneg = [](double v) { return std::isfinite(v) && v >= 0; };
+  require(finite_pos(o.tool_radius_mm), "--tool-radius-mm must be > 0");
+  require(finite_pos(o.scallop_mm), "--scallop-mm must be > 0");
+  require(o.scallop_mm < o.tool_radius_mm, "--scallop-mm must be below the tool radius");
+  require(finite_pos(o.chord_tol_mm), "--chord-tol-mm must be > 0");
+  require(o.chord_tol_mm < o.scallop_mm,
+          "--chord-tol-mm (" + mm(o.chord_tol_mm) + ") must be below --scallop-mm (" + mm(o.scallop_mm) +
+              "): in concave regions the chords leave up to e of material, and the side step uses what remains of h");
+  require(finite_pos(o.gouge_tol_mm), "--gouge-tol-mm must be > 0");
+  require(finite_nonneg(o.stock_mm), "--stock-mm must be >= 0");
+  require(finite_pos(o.max_step_mm), "--max-step-mm must be > 0");
+  require(finite_pos(o.feed_mm_per_min), "--feed-mm-per-min must be > 0");
+  require(finite_pos(o.plunge_feed_mm_per_min), "--plunge-feed-mm-per-min must be > 0");
+  require(!o.safe_z_mm || std::isfinite(*o.safe_z_mm), "--safe-z-mm must be a finite number");
+  require(finite_nonneg(o.retract_mm), "--retract-mm must be >= 0");
+  require(finite_nonneg(o.clearance_mm), "--clearance-mm must be >= 0");
+  require(finite_pos(o.drop_sample_mm), "--drop-sample-mm must be > 0");
+  require(finite_pos(o.side_sample_mm), "--side-sample-mm must be > 0");
+  require(o.threads >= 0, "--threads must be >= 0");
+  require(!o.spindle_rpm || finite_pos(*o.spindle_rpm), "--spindle-rpm must be > 0");
+  require(o.part_name.find_first_of("\r\n") == std::string::npos, "--part-name must be one line");
+}
+
+ToolpathResult generate_toolpath(const BSplineSurface& surface, const ToolpathOptions& o) {
+  validate(o);
+  const auto start = std::chrono::steady_clock::now();
+  ToolpathResult result;
+  const double R = o.tool_radius_mm;
+  const double r = R + o.stock_mm;  // radius of the ball the centres are computed for
+
+  // Steps 1, 5, 6: the pass lines.
+  result.lines = plan_passes(surface, pass_plan_options(o));
+
+  const DropCutter drop(surface, r, o.drop_sample_mm);
+  const CutterOptions cutter = cutter_options(o);
+  const ForwardStepOptions forward = forward_step_options(o);
+  const std::vector<WorkItem> items = work_items(surface, o, result.lines, result.stats.edge_passes);
+
+  // Steps 2, 3, 4 (and 7) on every piece, in parallel: each writes only its own slot.
+  std::vector<MarchResult> marched(items.size());
+  geometry::parallel_for(items.size(), geometry::thread_count(o.threads), [&](std::size_t i) {
+    const WorkItem& item = items[i];
+    const IsoCurve curve(surface, item.direction, item.w);
+    marched[i] = march_interval(curve, item.t_from, item.t_to, forward, r,
+                                [&](const PassFrame& f) { return cc_to_cl(f, drop, cutter); });
+  });
+
+  ToolpathStats& st = result.stats;
+  st.passes = result.lines.size();
+  side_step_stats(result.lines, st);
+  const double top_tip = collect_segments(items, marched, result);
+  st.safe_z_mm = safe_plane(o, std::max(drop.top_z(), top_tip));
+  write_cl_moves(drop, o, result);
+  move_stats(result.cl, st);
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
 }
