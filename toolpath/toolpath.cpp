@@ -74,39 +74,6 @@ std::vector<Eigen::Vector3d> link_points(const Eigen::Vector3d& a, const Eigen::
   return out;
 }
 
-
-PassPlanOptions pass_plan_options(const ToolpathOptions& o) {
-  PassPlanOptions plan;
-  plan.direction = o.direction;
-  plan.tool_radius_mm = o.tool_radius_mm;
-  plan.scallop_mm = o.scallop_mm;
-  plan.chord_tol_mm = o.chord_tol_mm;
-  plan.stock_mm = o.stock_mm;
-  plan.max_step_mm = o.max_step_mm;
-  plan.sample_mm = o.side_sample_mm;
-  plan.threads = o.threads;
-  return plan;
-}
-
-CutterOptions cutter_options(const ToolpathOptions& o) {
-  CutterOptions cutter;
-  cutter.tool_radius_mm = o.tool_radius_mm;
-  cutter.stock_mm = o.stock_mm;
-  cutter.gouge_tol_mm = o.gouge_tol_mm;
-  cutter.lift = o.lift;
-  cutter.sample_mm = o.drop_sample_mm;
-  return cutter;
-}
-
-ForwardStepOptions forward_step_options(const ToolpathOptions& o) {
-  ForwardStepOptions forward;
-  forward.chord_tol_mm = o.chord_tol_mm;
-  forward.gouge_tol_mm = o.gouge_tol_mm;
-  forward.max_step_mm = o.max_step_mm;
-  forward.enforce_gouge = o.lift;
-  return forward;
-}
-
 // The pieces in machining order: zig-zag reverses every other line. Then the edge passes along
 // slanted domain edges (without a boundary polygon, whose edges the passes overrun instead): the
 // edge nearer to where the last pass ended first; `edge_passes` counts them.
@@ -310,11 +277,29 @@ ToolpathResult generate_toolpath(const BSplineSurface& surface, const ToolpathOp
   const double r = R + o.stock_mm;  // radius of the ball the centres are computed for
 
   // Steps 1, 5, 6: the pass lines.
-  result.lines = plan_passes(surface, pass_plan_options(o));
+  PassPlanOptions plan;
+  plan.direction = o.direction;
+  plan.tool_radius_mm = R;
+  plan.scallop_mm = o.scallop_mm;
+  plan.chord_tol_mm = o.chord_tol_mm;
+  plan.stock_mm = o.stock_mm;
+  plan.max_step_mm = o.max_step_mm;
+  plan.sample_mm = o.side_sample_mm;
+  plan.threads = o.threads;
+  result.lines = plan_passes(surface, plan);
 
   const DropCutter drop(surface, r, o.drop_sample_mm);
-  const CutterOptions cutter = cutter_options(o);
-  const ForwardStepOptions forward = forward_step_options(o);
+  CutterOptions cutter;
+  cutter.tool_radius_mm = R;
+  cutter.stock_mm = o.stock_mm;
+  cutter.gouge_tol_mm = o.gouge_tol_mm;
+  cutter.lift = o.lift;
+  cutter.sample_mm = o.drop_sample_mm;
+  ForwardStepOptions forward;
+  forward.chord_tol_mm = o.chord_tol_mm;
+  forward.gouge_tol_mm = o.gouge_tol_mm;
+  forward.max_step_mm = o.max_step_mm;
+  forward.enforce_gouge = o.lift;
   const std::vector<WorkItem> items = work_items(surface, o, result.lines, result.stats.edge_passes);
 
   // Steps 2, 3, 4 (and 7) on every piece, in parallel: each writes only its own slot.
