@@ -74,6 +74,97 @@ std::vector<Eigen::Vector3d> link_points(const Eigen::Vector3d& a, const Eigen::
   return out;
 }
 
+// The steps of generate_toolpath, in its order (defined after it).
+std::vector<WorkItem> work_items(const BSplineSurface& surface, const ToolpathOptions& o, const std::vector<PassLine>& lines,
+                                 std::size_t& edge_passes);
+void side_step_stats(const std::vector<PassLine>& lines, ToolpathStats& st);
+double collect_segments(const std::vector<WorkItem>& items, std::vector<MarchResult>& marched, ToolpathResult& result);
+double safe_plane(const ToolpathOptions& o, double top);
+void write_cl_moves(const DropCutter& drop, const ToolpathOptions& o, ToolpathResult& result);
+void move_stats(const ClData& cl, ToolpathStats& st);
+
+}  // namespace
+
+void validate(const ToolpathOptions& o) {
+  const auto finite_pos = [](double v) { return std::isfinite(v) && v > 0; };
+  const auto finite_nonneg = [](double v) { return std::isfinite(v) && v >= 0; };
+  require(finite_pos(o.tool_radius_mm), "--tool-radius-mm must be > 0");
+  require(finite_pos(o.scallop_mm), "--scallop-mm must be > 0");
+  require(o.scallop_mm < o.tool_radius_mm, "--scallop-mm must be below the tool radius");
+  require(finite_pos(o.chord_tol_mm), "--chord-tol-mm must be > 0");
+  require(o.chord_tol_mm < o.scallop_mm,
+          "--chord-tol-mm (" + mm(o.chord_tol_mm) + ") must be below --scallop-mm (" + mm(o.scallop_mm) +
+              "): in concave regions the chords leave up to e of material, and the side step uses what remains of h");
+  require(finite_pos(o.gouge_tol_mm), "--gouge-tol-mm must be > 0");
+  require(finite_nonneg(o.stock_mm), "--stock-mm must be >= 0");
+  require(finite_pos(o.max_step_mm), "--max-step-mm must be > 0");
+  require(finite_pos(o.feed_mm_per_min), "--feed-mm-per-min must be > 0");
+  require(finite_pos(o.plunge_feed_mm_per_min), "--plunge-feed-mm-per-min must be > 0");
+  require(!o.safe_z_mm || std::isfinite(*o.safe_z_mm), "--safe-z-mm must be a finite number");
+  require(finite_nonneg(o.retract_mm), "--retract-mm must be >= 0");
+  require(finite_nonneg(o.clearance_mm), "--clearance-mm must be >= 0");
+  require(finite_pos(o.drop_sample_mm), "--drop-sample-mm must be > 0");
+  require(finite_pos(o.side_sample_mm), "--side-sample-mm must be > 0");
+  require(o.threads >= 0, "--threads must be >= 0");
+  require(!o.spindle_rpm || finite_pos(*o.spindle_rpm), "--spindle-rpm must be > 0");
+  require(o.part_name.find_first_of("\r\n") == std::string::npos, "--part-name must be one line");
+}
+
+ToolpathResult generate_toolpath(const BSplineSurface& surface, const ToolpathOptions& o) {
+  validate(o);
+  const auto start = std::chrono::steady_clock::now();
+  ToolpathResult result;
+  const double R = o.tool_radius_mm;
+  const double r = R + o.stock_mm;  // radius of the ball the centres are computed for
+
+  // Steps 1, 5, 6: the pass lines.
+  PassPlanOptions plan;
+  plan.direction = o.direction;
+  plan.tool_radius_mm = R;
+  plan.scallop_mm = o.scallop_mm;
+  plan.chord_tol_mm = o.chord_tol_mm;
+  plan.stock_mm = o.stock_mm;
+  plan.max_step_mm = o.max_step_mm;
+  plan.sample_mm = o.side_sample_mm;
+  plan.threads = o.threads;
+  result.lines = plan_passes(surface, plan);
+
+  const DropCutter drop(surface, r, o.drop_sample_mm);
+  CutterOptions cutter;
+  cutter.tool_radius_mm = R;
+  cutter.stock_mm = o.stock_mm;
+  cutter.gouge_tol_mm = o.gouge_tol_mm;
+  cutter.lift = o.lift;
+  cutter.sample_mm = o.drop_sample_mm;
+  ForwardStepOptions forward;
+  forward.chord_tol_mm = o.chord_tol_mm;
+  forward.gouge_tol_mm = o.gouge_tol_mm;
+  forward.max_step_mm = o.max_step_mm;
+  forward.enforce_gouge = o.lift;
+  const std::vector<WorkItem> items = work_items(surface, o, result.lines, result.stats.edge_passes);
+
+  // Steps 2, 3, 4 (and 7) on every piece, in parallel: each writes only its own slot.
+  std::vector<MarchResult> marched(items.size());
+  geometry::parallel_for(items.size(), geometry::thread_count(o.threads), [&](std::size_t i) {
+    const WorkItem& item = items[i];
+    const IsoCurve curve(surface, item.direction, item.w);
+    marched[i] = march_interval(curve, item.t_from, item.t_to, forward, r,
+                                [&](const PassFrame& f) { return cc_to_cl(f, drop, cutter); });
+  });
+
+  ToolpathStats& st = result.stats;
+  st.passes = result.lines.size();
+  side_step_stats(result.lines, st);
+  const double top_tip = collect_segments(items, marched, result);
+  st.safe_z_mm = safe_plane(o, std::max(drop.top_z(), top_tip));
+  write_cl_moves(drop, o, result);
+  move_stats(result.cl, st);
+  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+namespace {
+
 // The pieces in machining order: zig-zag reverses every other line. Then the edge passes along
 // slanted domain edges (without a boundary polygon, whose edges the passes overrun instead): the
 // edge nearer to where the last pass ended first; `edge_passes` counts them.
@@ -243,83 +334,5 @@ void move_stats(const ClData& cl, ToolpathStats& st) {
 }
 
 }  // namespace
-
-void validate(const ToolpathOptions& o) {
-  const auto finite_pos = [](double v) { return std::isfinite(v) && v > 0; };
-  const auto finite_nonneg = [](double v) { return std::isfinite(v) && v >= 0; };
-  require(finite_pos(o.tool_radius_mm), "--tool-radius-mm must be > 0");
-  require(finite_pos(o.scallop_mm), "--scallop-mm must be > 0");
-  require(o.scallop_mm < o.tool_radius_mm, "--scallop-mm must be below the tool radius");
-  require(finite_pos(o.chord_tol_mm), "--chord-tol-mm must be > 0");
-  require(o.chord_tol_mm < o.scallop_mm,
-          "--chord-tol-mm (" + mm(o.chord_tol_mm) + ") must be below --scallop-mm (" + mm(o.scallop_mm) +
-              "): in concave regions the chords leave up to e of material, and the side step uses what remains of h");
-  require(finite_pos(o.gouge_tol_mm), "--gouge-tol-mm must be > 0");
-  require(finite_nonneg(o.stock_mm), "--stock-mm must be >= 0");
-  require(finite_pos(o.max_step_mm), "--max-step-mm must be > 0");
-  require(finite_pos(o.feed_mm_per_min), "--feed-mm-per-min must be > 0");
-  require(finite_pos(o.plunge_feed_mm_per_min), "--plunge-feed-mm-per-min must be > 0");
-  require(!o.safe_z_mm || std::isfinite(*o.safe_z_mm), "--safe-z-mm must be a finite number");
-  require(finite_nonneg(o.retract_mm), "--retract-mm must be >= 0");
-  require(finite_nonneg(o.clearance_mm), "--clearance-mm must be >= 0");
-  require(finite_pos(o.drop_sample_mm), "--drop-sample-mm must be > 0");
-  require(finite_pos(o.side_sample_mm), "--side-sample-mm must be > 0");
-  require(o.threads >= 0, "--threads must be >= 0");
-  require(!o.spindle_rpm || finite_pos(*o.spindle_rpm), "--spindle-rpm must be > 0");
-  require(o.part_name.find_first_of("\r\n") == std::string::npos, "--part-name must be one line");
-}
-
-ToolpathResult generate_toolpath(const BSplineSurface& surface, const ToolpathOptions& o) {
-  validate(o);
-  const auto start = std::chrono::steady_clock::now();
-  ToolpathResult result;
-  const double R = o.tool_radius_mm;
-  const double r = R + o.stock_mm;  // radius of the ball the centres are computed for
-
-  // Steps 1, 5, 6: the pass lines.
-  PassPlanOptions plan;
-  plan.direction = o.direction;
-  plan.tool_radius_mm = R;
-  plan.scallop_mm = o.scallop_mm;
-  plan.chord_tol_mm = o.chord_tol_mm;
-  plan.stock_mm = o.stock_mm;
-  plan.max_step_mm = o.max_step_mm;
-  plan.sample_mm = o.side_sample_mm;
-  plan.threads = o.threads;
-  result.lines = plan_passes(surface, plan);
-
-  const DropCutter drop(surface, r, o.drop_sample_mm);
-  CutterOptions cutter;
-  cutter.tool_radius_mm = R;
-  cutter.stock_mm = o.stock_mm;
-  cutter.gouge_tol_mm = o.gouge_tol_mm;
-  cutter.lift = o.lift;
-  cutter.sample_mm = o.drop_sample_mm;
-  ForwardStepOptions forward;
-  forward.chord_tol_mm = o.chord_tol_mm;
-  forward.gouge_tol_mm = o.gouge_tol_mm;
-  forward.max_step_mm = o.max_step_mm;
-  forward.enforce_gouge = o.lift;
-  const std::vector<WorkItem> items = work_items(surface, o, result.lines, result.stats.edge_passes);
-
-  // Steps 2, 3, 4 (and 7) on every piece, in parallel: each writes only its own slot.
-  std::vector<MarchResult> marched(items.size());
-  geometry::parallel_for(items.size(), geometry::thread_count(o.threads), [&](std::size_t i) {
-    const WorkItem& item = items[i];
-    const IsoCurve curve(surface, item.direction, item.w);
-    marched[i] = march_interval(curve, item.t_from, item.t_to, forward, r,
-                                [&](const PassFrame& f) { return cc_to_cl(f, drop, cutter); });
-  });
-
-  ToolpathStats& st = result.stats;
-  st.passes = result.lines.size();
-  side_step_stats(result.lines, st);
-  const double top_tip = collect_segments(items, marched, result);
-  st.safe_z_mm = safe_plane(o, std::max(drop.top_z(), top_tip));
-  write_cl_moves(drop, o, result);
-  move_stats(result.cl, st);
-  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return result;
-}
 
 }  // namespace photomill::toolpath
