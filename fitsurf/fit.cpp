@@ -517,30 +517,23 @@ void require_points(std::size_t n, const FitOptions& o) {
 namespace {
 
 FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& o,
-                  const std::vector<double>& point_weights) {
-  if (!point_weights.empty() && point_weights.size() != points.size()) {
-    throw UsageError("fit_surface: " + std::to_string(point_weights.size()) + " point weights for " +
-                     std::to_string(points.size()) + " points");
-  }
-  require_points(points.size(), o);
-  const int p = o.degree_u, q = o.degree_v;
-  FitResult r;
-  r.plane = o.plane;
-  r.frame = parameter_frame(points, o.plane, o.frame);
-  if (is_flat(r.frame, o.frame)) log::info("the points are flat (a plane fits them): the surface will be a plane");
-  std::vector<Eigen::Vector3d> local(points.size());
-  geometry::parallel_blocks(points.size(), o.threads, 2048, [&](std::size_t b, std::size_t e, int) {
-    for (std::size_t k = b; k < e; ++k) local[k] = r.frame.to_local(points[k]);
-  });
-  r.box = parameter_box(local);
-  check_height_field(local, r.box, r.frame, o.fold);
-  r.data_slope = data_slope(local, r.box, o.slope);
-  std::vector<Eigen::Vector2d> uv(points.size());
-  for (std::size_t k = 0; k < points.size(); ++k) uv[k] = r.box.to_uv(local[k]);
+                  const std::vector<double>& point_weights);
 
+// The points in the frame of the parameter plane.
+std::vector<Eigen::Vector3d> to_local(const std::vector<Eigen::Vector3d>& points, const PlaneFrame& frame, int threads) {
+  std::vector<Eigen::Vector3d> local(points.size());
+  geometry::parallel_blocks(points.size(), threads, 2048, [&](std::size_t b, std::size_t e, int) {
+    for (std::size_t k = b; k < e; ++k) local[k] = frame.to_local(points[k]);
+  });
+  return local;
+}
+
+// The net's degrees, pole counts and knots (o.knots; adaptive ones from a first fit).
+SplineSpace net_space(const std::vector<Eigen::Vector3d>& points, const FitOptions& o,
+                      const std::vector<double>& point_weights, const std::vector<Eigen::Vector2d>& uv) {
   SplineSpace space;
-  space.p = p;
-  space.q = q;
+  space.p = o.degree_u;
+  space.q = o.degree_v;
   space.nu = o.poles_u;
   space.nv = o.poles_v;
   if (o.knots == KnotPlacement::Adaptive) {
@@ -551,35 +544,85 @@ FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& 
     space.U = adaptive_knots(f.local_surface, 0, o.poles_u, o.adaptive_knot_ratio, o.adaptive_knot_floor_mm);
     space.V = adaptive_knots(f.local_surface, 1, o.poles_v, o.adaptive_knot_ratio, o.adaptive_knot_floor_mm);
   } else {
-    space.U = knots_for(o.knots, uv, o.poles_u, p, 0);
-    space.V = knots_for(o.knots, uv, o.poles_v, q, 1);
+    space.U = knots_for(o.knots, uv, o.poles_u, space.p, 0);
+    space.V = knots_for(o.knots, uv, o.poles_v, space.q, 1);
   }
-  NetSolver solver(space, o, r.box.length_u_mm(), r.box.length_v_mm());
-  const bool reweight = o.robust != RobustLoss::None &&
-                        static_cast<double>(points.size()) >= o.robust_min_redundancy * space.num_poles();
-  if (o.robust != RobustLoss::None && !reweight) {
-    log::debug("robust reweighting off: " + std::to_string(points.size()) + " points for " +
-               std::to_string(space.num_poles()) + " poles (fewer than " + sig(o.robust_min_redundancy) + " per pole)");
-  }
+  return space;
+}
 
-  if (o.noise_mm > 0) {
-    r.smoothing_mm4 = smoothing_for_noise(solver, space, uv, local, o);
-    solver.set_smoothing(r.smoothing_mm4);
-    log::debug("smoothing " + sig(r.smoothing_mm4, 3) + " mm^4 for residuals of " + sig(o.noise_mm, 3) + " mm");
-  } else {
-    r.smoothing_mm4 = o.smoothing_mm4;
+// The weights of the fit: the points' own (point_weights) times the robust ones.
+std::vector<double> total_weights(const std::vector<double>& point_weights, const std::vector<double>& robust) {
+  if (point_weights.empty()) return robust;
+  std::vector<double> t(point_weights);
+  if (!robust.empty()) {
+    for (std::size_t k = 0; k < t.size(); ++k) t[k] *= robust[k];
   }
-  std::vector<double> w;  // robust weights; empty: all 1
-  std::vector<double> d;
-  // The weights of the fit: the points' own (point_weights) times the robust ones.
-  auto total = [&](const std::vector<double>& robust) {
-    if (point_weights.empty()) return robust;
-    std::vector<double> t(point_weights);
-    if (!robust.empty()) {
-      for (std::size_t k = 0; k < t.size(); ++k) t[k] *= robust[k];
-    }
-    return t;
-  };
+  return t;
+}
+
+// Gross outliers first (why and how: FitOptions::gross_threshold): rejected against a coarse
+// first fit; when there are any, w becomes the screen's weights (0 for them, 1 for the rest).
+// d gets the coarse fit's residuals.
+void screen_gross_outliers(const SplineSpace& space, const std::vector<Eigen::Vector2d>& uv,
+                           const std::vector<Eigen::Vector3d>& local, const std::vector<double>& point_weights,
+                           const FitOptions& o, FitResult& r, std::vector<double>& w, std::vector<double>& d) {
+  const int p = o.degree_u, q = o.degree_v;
+  SplineSpace coarse = space;
+  const double n = static_cast<double>(local.size()) / o.gross_points_per_pole;
+  const double aspect = r.box.length_u_mm() / r.box.length_v_mm();
+  coarse.nu = std::clamp(static_cast<int>(std::lround(std::sqrt(n * aspect))), p + 1, space.nu);
+  coarse.nv = std::clamp(static_cast<int>(std::lround(std::sqrt(n / aspect))), q + 1, space.nv);
+  coarse.U = knots_for(o.knots, uv, coarse.nu, p, 0);
+  coarse.V = knots_for(o.knots, uv, coarse.nv, q, 1);
+  NetSolver screen_solver(coarse, o, r.box.length_u_mm(), r.box.length_v_mm());
+  screen_solver.set_smoothing(r.smoothing_mm4);
+  bool screened = true;
+  try {
+    parameter_residuals(make_surface(coarse, screen_solver.solve(uv, local, total_weights(point_weights, w))), local, uv, d,
+                        o.threads);
+  } catch (const GeometryError& e) {  // e.g. no smoothing over a gap: the fit itself will say so
+    log::debug(std::string("no gross-outlier screening: ") + e.what());
+    screened = false;
+  }
+  FitOptions gross = o;
+  gross.robust = RobustLoss::Reject;
+  gross.robust_threshold = o.gross_threshold;
+  std::vector<double> screen;
+  const Weighting g = screened ? robust_weights(local_residuals(uv, d, r.box.length_u_mm(), r.box.length_v_mm(), o.threads),
+                                                gross, screen)
+                               : Weighting{};
+  r.gross_outliers = g.outliers;
+  if (g.outliers > 0) {
+    log::debug(std::to_string(g.outliers) + " gross outliers (off their neighbours' height by more than " +
+               sig(g.cutoff_mm, 3) + " mm against a " + std::to_string(coarse.nu) + "x" + std::to_string(coarse.nv) +
+               " first fit) left out from the start");
+    w = std::move(screen);
+  }
+}
+
+// The slope check of check_no_fold on r.local_surface, on the grid cells that hold a foot point
+// (r.uv); `occupied` is the cells' scratch space.
+SlopeExcess slope_excess_at_points(const FitResult& r, const FitOptions& o, std::vector<std::uint8_t>& occupied) {
+  const int grid = std::max(2, o.fold.check_samples);
+  occupied.assign(static_cast<std::size_t>(grid) * grid, 0);
+  for (const auto& x : r.uv) {
+    const int a = std::clamp(static_cast<int>(x.x() * grid), 0, grid - 1);
+    const int b = std::clamp(static_cast<int>(x.y() * grid), 0, grid - 1);
+    occupied[static_cast<std::size_t>(a) * grid + b] = 1;
+  }
+  return steepest_excess(r.local_surface, r.data_slope, r.box, o.fold, [&](const Eigen::Vector2d& x) {
+    return occupied[static_cast<std::size_t>(x.x() * grid) * grid + static_cast<std::size_t>(x.y() * grid)] != 0;
+  });
+}
+
+// The rounds of the fit (fit.hpp, steps 2-4): fit, correct the parameters (or take the residuals
+// at fixed ones), reweight, until the RMS stops improving and the weights have settled, or
+// o.max_rounds. Leaves the surface, the parameters and the rounds' RMS in r, the last
+// residuals in d, the robust weights in w; uv follows the corrected parameters.
+void fit_rounds(NetSolver& solver, const SplineSpace& space, std::vector<Eigen::Vector2d>& uv,
+                const std::vector<Eigen::Vector3d>& local, const std::vector<double>& point_weights, const FitOptions& o,
+                bool reweight, std::vector<double>& w, std::vector<double>& d, FitResult& r) {
+  const auto total = [&](const std::vector<double>& robust) { return total_weights(point_weights, robust); };
   // RMS of the previous round's residuals under the weights of this round's fit: with the weights
   // fixed, refitting and then projecting can only lower it, so the gain measures convergence.
   double previous = std::numeric_limits<double>::infinity();
@@ -588,42 +631,6 @@ FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& 
   // parameters of the points there, which no reweighting repairs (docs/measurements/fitsurf.md).
   const std::vector<Eigen::Vector2d> plane_uv = reweight && o.parameter_correction ? uv : std::vector<Eigen::Vector2d>{};
   bool weighted = false;
-  // The screening's coarse fit has redundancy even where the fine net has too little for reweighting.
-  const bool screen_gross = o.robust != RobustLoss::None &&
-                            static_cast<double>(points.size()) >= o.gross_points_per_pole * static_cast<double>((p + 1) * (q + 1));
-  if (screen_gross) {
-    // Gross outliers first (why and how: FitOptions::gross_threshold).
-    SplineSpace coarse = space;
-    const double n = static_cast<double>(points.size()) / o.gross_points_per_pole;
-    const double aspect = r.box.length_u_mm() / r.box.length_v_mm();
-    coarse.nu = std::clamp(static_cast<int>(std::lround(std::sqrt(n * aspect))), p + 1, space.nu);
-    coarse.nv = std::clamp(static_cast<int>(std::lround(std::sqrt(n / aspect))), q + 1, space.nv);
-    coarse.U = knots_for(o.knots, uv, coarse.nu, p, 0);
-    coarse.V = knots_for(o.knots, uv, coarse.nv, q, 1);
-    NetSolver screen_solver(coarse, o, r.box.length_u_mm(), r.box.length_v_mm());
-    screen_solver.set_smoothing(r.smoothing_mm4);
-    bool screened = true;
-    try {
-      parameter_residuals(make_surface(coarse, screen_solver.solve(uv, local, total(w))), local, uv, d, o.threads);
-    } catch (const GeometryError& e) {  // e.g. no smoothing over a gap: the fit itself will say so
-      log::debug(std::string("no gross-outlier screening: ") + e.what());
-      screened = false;
-    }
-    FitOptions gross = o;
-    gross.robust = RobustLoss::Reject;
-    gross.robust_threshold = o.gross_threshold;
-    std::vector<double> screen;
-    const Weighting g = screened ? robust_weights(local_residuals(uv, d, r.box.length_u_mm(), r.box.length_v_mm(), o.threads),
-                                                  gross, screen)
-                                 : Weighting{};
-    r.gross_outliers = g.outliers;
-    if (g.outliers > 0) {
-      log::debug(std::to_string(g.outliers) + " gross outliers (off their neighbours' height by more than " +
-                 sig(g.cutoff_mm, 3) + " mm against a " + std::to_string(coarse.nu) + "x" + std::to_string(coarse.nv) +
-                 " first fit) left out from the start");
-      w = std::move(screen);
-    }
-  }
   // The last round whose surface kept within the slopes FoldOptions allows (stop_before_fold).
   struct Kept {
     BSplineSurface surface;
@@ -631,7 +638,6 @@ FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& 
     std::vector<double> d;
   };
   std::optional<Kept> kept;
-  const int grid = std::max(2, o.fold.check_samples);
   std::vector<std::uint8_t> occupied;
   for (int round = 0; round < o.max_rounds; ++round) {
     r.local_surface = make_surface(space, solver.solve(uv, local, total(w)));
@@ -642,16 +648,7 @@ FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& 
       parameter_residuals(r.local_surface, local, uv, d, o.threads);
     }
     if (o.stop_before_fold && o.parameter_correction) {
-      // The slope check of check_no_fold, on the grid cells that hold a foot point.
-      occupied.assign(static_cast<std::size_t>(grid) * grid, 0);
-      for (const auto& x : r.uv) {
-        const int a = std::clamp(static_cast<int>(x.x() * grid), 0, grid - 1);
-        const int b = std::clamp(static_cast<int>(x.y() * grid), 0, grid - 1);
-        occupied[static_cast<std::size_t>(a) * grid + b] = 1;
-      }
-      const SlopeExcess e = steepest_excess(r.local_surface, r.data_slope, r.box, o.fold, [&](const Eigen::Vector2d& x) {
-        return occupied[static_cast<std::size_t>(x.x() * grid) * grid + static_cast<std::size_t>(x.y() * grid)] != 0;
-      });
+      const SlopeExcess e = slope_excess_at_points(r, o, occupied);
       if (e.excess_deg > 0 && kept) {
         log::debug("round " + std::to_string(round + 1) + " undone: slope " + fixed(e.slope_deg, 1) +
                    " degrees at u " + fixed(e.uv.x(), 3) + ", v " + fixed(e.uv.y(), 3) + " (at most " +
@@ -690,11 +687,11 @@ FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& 
       previous = std::numeric_limits<double>::infinity();
     }
   }
-  r.residual_mm = std::move(d);
-  if (!o.parameter_correction && o.final_projection) {
-    // The reported residuals are orthogonal distances whatever the method.
-    project_points(r.local_surface, local, r.uv, r.residual_mm, o.projection, o.threads);
-  }
+}
+
+// The weights and outliers reported for the n points' final residuals (r.residual_mm): the
+// robust weighting's, else the gross screening's (w), else all 1.
+void report_weights(const FitOptions& o, bool reweight, const std::vector<double>& w, std::size_t n, FitResult& r) {
   if (reweight) {
     const Weighting wt = robust_weights(
         local_residuals(r.uv, r.residual_mm, r.box.length_u_mm(), r.box.length_v_mm(), o.threads), o, r.weight, &r.outlier);
@@ -704,18 +701,68 @@ FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& 
     r.outliers = wt.outliers;
   } else if (!w.empty()) {  // only the gross outliers were left out
     r.weight = w;
-    r.outlier.assign(points.size(), 0);
+    r.outlier.assign(n, 0);
     for (std::size_t k = 0; k < w.size(); ++k) {
       r.outlier[k] = w[k] == 0.0;
       r.outliers += r.outlier[k];
     }
   } else {
-    r.weight.assign(points.size(), 1.0);
+    r.weight.assign(n, 1.0);
   }
   if (r.robust_applied) {
     r.robust_poles_u = o.poles_u;
     r.robust_poles_v = o.poles_v;
   }
+}
+
+FitResult fit_net(const std::vector<Eigen::Vector3d>& points, const FitOptions& o,
+                  const std::vector<double>& point_weights) {
+  if (!point_weights.empty() && point_weights.size() != points.size()) {
+    throw UsageError("fit_surface: " + std::to_string(point_weights.size()) + " point weights for " +
+                     std::to_string(points.size()) + " points");
+  }
+  require_points(points.size(), o);
+  const int p = o.degree_u, q = o.degree_v;
+  FitResult r;
+  r.plane = o.plane;
+  r.frame = parameter_frame(points, o.plane, o.frame);
+  if (is_flat(r.frame, o.frame)) log::info("the points are flat (a plane fits them): the surface will be a plane");
+  const std::vector<Eigen::Vector3d> local = to_local(points, r.frame, o.threads);
+  r.box = parameter_box(local);
+  check_height_field(local, r.box, r.frame, o.fold);
+  r.data_slope = data_slope(local, r.box, o.slope);
+  std::vector<Eigen::Vector2d> uv(points.size());
+  for (std::size_t k = 0; k < points.size(); ++k) uv[k] = r.box.to_uv(local[k]);
+
+  const SplineSpace space = net_space(points, o, point_weights, uv);
+  NetSolver solver(space, o, r.box.length_u_mm(), r.box.length_v_mm());
+  const bool reweight = o.robust != RobustLoss::None &&
+                        static_cast<double>(points.size()) >= o.robust_min_redundancy * space.num_poles();
+  if (o.robust != RobustLoss::None && !reweight) {
+    log::debug("robust reweighting off: " + std::to_string(points.size()) + " points for " +
+               std::to_string(space.num_poles()) + " poles (fewer than " + sig(o.robust_min_redundancy) + " per pole)");
+  }
+
+  if (o.noise_mm > 0) {
+    r.smoothing_mm4 = smoothing_for_noise(solver, space, uv, local, o);
+    solver.set_smoothing(r.smoothing_mm4);
+    log::debug("smoothing " + sig(r.smoothing_mm4, 3) + " mm^4 for residuals of " + sig(o.noise_mm, 3) + " mm");
+  } else {
+    r.smoothing_mm4 = o.smoothing_mm4;
+  }
+  std::vector<double> w;  // robust weights; empty: all 1
+  std::vector<double> d;
+  // The screening's coarse fit has redundancy even where the fine net has too little for reweighting.
+  const bool screen_gross = o.robust != RobustLoss::None &&
+                            static_cast<double>(points.size()) >= o.gross_points_per_pole * static_cast<double>((p + 1) * (q + 1));
+  if (screen_gross) screen_gross_outliers(space, uv, local, point_weights, o, r, w, d);
+  fit_rounds(solver, space, uv, local, point_weights, o, reweight, w, d, r);
+  r.residual_mm = std::move(d);
+  if (!o.parameter_correction && o.final_projection) {
+    // The reported residuals are orthogonal distances whatever the method.
+    project_points(r.local_surface, local, r.uv, r.residual_mm, o.projection, o.threads);
+  }
+  report_weights(o, reweight, w, points.size(), r);
   r.surface = r.local_surface;
   for (auto& pole : r.surface.poles_mm) pole = r.frame.to_world(pole);
   return r;

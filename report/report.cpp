@@ -172,16 +172,16 @@ std::string format_figure(double value) {
   return s.str();
 }
 
-std::string build_report_html(const std::string& dir, const ReportOptions& options) {
-  std::error_code ec;
-  const auto status = fs::status(dir, ec);
-  if (!fs::exists(status)) throw InputError(dir, 0, "cannot open: No such file or directory");
-  if (!fs::is_directory(status)) throw InputError(dir, 0, "not a folder: give the job's output folder (OUT of Makefile.example)");
-  const fs::path root(dir);
+namespace {
 
-  // The reports: read and checked before anything is written.
-  std::map<std::string, JsonValue> reports;
-  std::vector<const KnownFile*> missing;
+// The stage reports, by their path in the job folder.
+using Reports = std::map<std::string, JsonValue>;
+
+// The reports: read and checked before anything is written; the main chain's that are absent
+// go to `missing`.
+Reports read_reports(const fs::path& root, std::vector<const KnownFile*>& missing) {
+  std::error_code ec;
+  Reports reports;
   for (const KnownFile& k : known_reports()) {
     const fs::path p = root / k.path;
     if (!fs::exists(p, ec)) {
@@ -198,56 +198,60 @@ std::string build_report_html(const std::string& dir, const ReportOptions& optio
     }
     reports.emplace(k.path, std::move(v));
   }
-  // The pictures: complete PNG or JPEG files (check_image_file), embedded as they are.
-  struct Picture {
-    std::string path, what, mime, data;
-  };
-  const auto load = [&](const fs::path& p, const std::string& rel, const std::string& what) {
-    check_image_file(p.string());
-    std::string bytes = tool::read_all(p.string(), kMaxImageBytes);
-    const bool png = bytes.size() >= 8 && bytes.compare(1, 3, "PNG") == 0;
-    const bool jpeg = bytes.size() >= 3 && bytes.compare(0, 3, "\xFF\xD8\xFF") == 0;
-    if (!png && !jpeg) throw InputError(p.string(), 0, "not a PNG or JPEG picture");
-    return Picture{rel, what, png ? "image/png" : "image/jpeg", base64(bytes)};
-  };
+  return reports;
+}
+
+// The pictures: complete PNG or JPEG files (check_image_file), embedded as they are.
+struct Picture {
+  std::string path, what, mime, data;
+};
+
+Picture load_picture(const fs::path& p, const std::string& rel, const std::string& what) {
+  check_image_file(p.string());
+  std::string bytes = tool::read_all(p.string(), kMaxImageBytes);
+  const bool png = bytes.size() >= 8 && bytes.compare(1, 3, "PNG") == 0;
+  const bool jpeg = bytes.size() >= 3 && bytes.compare(0, 3, "\xFF\xD8\xFF") == 0;
+  if (!png && !jpeg) throw InputError(p.string(), 0, "not a PNG or JPEG picture");
+  return Picture{rel, what, png ? "image/png" : "image/jpeg", base64(bytes)};
+}
+
+// The known pictures in the folder; the main chain's that are absent go to `missing`.
+std::vector<Picture> read_pictures(const fs::path& root, std::vector<const KnownFile*>& missing) {
+  std::error_code ec;
   std::vector<Picture> pictures;
   for (const KnownFile& k : known_pictures()) {
     const fs::path p = root / k.path;
     if (fs::exists(p, ec)) {
-      pictures.push_back(load(p, k.path, k.what));
+      pictures.push_back(load_picture(p, k.path, k.what));
     } else if (!k.optional) {
       missing.push_back(&k);
     }
   }
-  std::vector<Picture> drawings;
-  if (options.drawings && fs::is_directory(root / "drawings", ec)) {
-    std::vector<fs::path> files;
-    for (const auto& e : fs::directory_iterator(root / "drawings", ec)) {
-      const std::string ext = e.path().extension().string();
-      if (e.is_regular_file() && (ext == ".jpg" || ext == ".png") && e.path().filename().string().find(".tmp.") == std::string::npos) {
-        files.push_back(e.path());
-      }
-    }
-    std::sort(files.begin(), files.end());
-    for (const auto& f : files) {
-      drawings.push_back(load(f, "drawings/" + f.filename().string(), "what detect found in " + f.stem().string()));
-    }
-  }
-  if (reports.empty() && pictures.empty() && drawings.empty()) {
-    throw InputError(dir, 0,
-                     "no photomill report or picture here (calib.json, triangulate.json, fitsurf.json, toolpath.json, "
-                     "calib.png, cloud.png, surface.png, path.png, drawings/): give the job's output folder");
-  }
+  return pictures;
+}
 
-  const std::string folder = fs::absolute(root).lexically_normal().filename().string().empty()
-                                 ? fs::absolute(root).lexically_normal().parent_path().filename().string()
-                                 : fs::absolute(root).lexically_normal().filename().string();
-  const std::string title = options.title.empty() ? "photomill job report: " + folder : options.title;
-  std::ostringstream o;
-  o.imbue(std::locale::classic());
-  o << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>" << html(title)
-    << "</title>\n<style>" << kStyle << "</style>\n</head>\n<body>\n<h1>" << html(title) << "</h1>\n";
-  // Contents: a link to every section, picture and report.
+// detect's drawings (drawings/*.jpg|png but the .tmp. files of a run in progress), by name.
+std::vector<Picture> read_drawings(const fs::path& root) {
+  std::error_code ec;
+  std::vector<Picture> drawings;
+  if (!fs::is_directory(root / "drawings", ec)) return drawings;
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(root / "drawings", ec)) {
+    const std::string ext = e.path().extension().string();
+    if (e.is_regular_file() && (ext == ".jpg" || ext == ".png") && e.path().filename().string().find(".tmp.") == std::string::npos) {
+      files.push_back(e.path());
+    }
+  }
+  std::sort(files.begin(), files.end());
+  for (const auto& f : files) {
+    drawings.push_back(load_picture(f, "drawings/" + f.filename().string(), "what detect found in " + f.stem().string()));
+  }
+  return drawings;
+}
+
+// Contents: a link to every section, picture and report.
+void write_contents(std::ostream& o, const std::vector<Picture>& pictures, const std::vector<Picture>& drawings,
+                    const Reports& reports) {
   o << "<nav><p><a href=\"#summary\">headline figures</a><a href=\"#pictures\">pictures</a>";
   if (!drawings.empty()) o << "<a href=\"#drawings\">drawings</a>";
   o << "<a href=\"#figures\">every figure</a></p>\n<p>pictures:";
@@ -259,8 +263,11 @@ std::string build_report_html(const std::string& dir, const ReportOptions& optio
     if (reports.count(k.path)) o << " <a href=\"#" << anchor(k.path) << "\">" << html(k.path) << "</a>";
   }
   o << "</p></nav>\n";
+}
 
-  // Headline figures, one table, grouped by report as headlines() lists them.
+// Headline figures, one table, grouped by report as headlines() lists them; then the warnings
+// the stages wrote into their reports and the files missing.
+void write_summary(std::ostream& o, const Reports& reports, const std::vector<const KnownFile*>& missing) {
   o << "<h2 id=\"summary\">Headline figures</h2>\n<table>\n<tr><th>figure</th><th>value</th><th>unit</th><th>from</th></tr>\n";
   for (const Headline& h : headlines()) {
     const auto r = reports.find(h.file);
@@ -276,7 +283,6 @@ std::string build_report_html(const std::string& dir, const ReportOptions& optio
       << html(h.path) << "</td></tr>\n";
   }
   o << "</table>\n";
-  // Warnings the stages wrote into their reports.
   std::vector<std::pair<std::string, std::string>> warnings;
   for (const auto& [file, v] : reports) {
     if (const JsonValue* w = v.find("warnings"); w && w->type == JsonValue::Type::Array) {
@@ -295,23 +301,26 @@ std::string build_report_html(const std::string& dir, const ReportOptions& optio
     }
     o << "</ul>\n";
   }
+}
 
+void write_figure(std::ostream& o, const Picture& p) {
+  o << "<figure id=\"" << anchor(p.path) << "\"><img alt=\"" << html(p.path) << "\" src=\"data:" << p.mime << ";base64," << p.data
+    << "\"><figcaption><b>" << html(p.path) << "</b>: " << html(p.what) << "</figcaption></figure>\n";
+}
+
+void write_pictures(std::ostream& o, const std::vector<Picture>& pictures, const std::vector<Picture>& drawings) {
   o << "<h2 id=\"pictures\">Pictures</h2>\n";
   if (pictures.empty()) o << "<p class=\"missing\">No picture in this folder.</p>\n";
-  for (const Picture& p : pictures) {
-    o << "<figure id=\"" << anchor(p.path) << "\"><img alt=\"" << html(p.path) << "\" src=\"data:" << p.mime << ";base64," << p.data
-      << "\"><figcaption><b>" << html(p.path) << "</b>: " << html(p.what) << "</figcaption></figure>\n";
-  }
+  for (const Picture& p : pictures) write_figure(o, p);
   if (!drawings.empty()) {
     o << "<h2 id=\"drawings\">Drawings (detect --draw)</h2>\n<div class=\"drawings\">\n";
-    for (const Picture& p : drawings) {
-      o << "<figure id=\"" << anchor(p.path) << "\"><img alt=\"" << html(p.path) << "\" src=\"data:" << p.mime << ";base64," << p.data
-        << "\"><figcaption><b>" << html(p.path) << "</b>: " << html(p.what) << "</figcaption></figure>\n";
-    }
+    for (const Picture& p : drawings) write_figure(o, p);
     o << "</div>\n";
   }
+}
 
-  // Every figure of every report, one table each (folded).
+// Every figure of every report, one table each (folded).
+void write_every_figure(std::ostream& o, const Reports& reports) {
   o << "<h2 id=\"figures\">Every figure of every report</h2>\n";
   for (const KnownFile& k : known_reports()) {
     const auto r = reports.find(k.path);
@@ -326,6 +335,39 @@ std::string build_report_html(const std::string& dir, const ReportOptions& optio
     }
     o << "</table></details>\n";
   }
+}
+
+}  // namespace
+
+std::string build_report_html(const std::string& dir, const ReportOptions& options) {
+  std::error_code ec;
+  const auto status = fs::status(dir, ec);
+  if (!fs::exists(status)) throw InputError(dir, 0, "cannot open: No such file or directory");
+  if (!fs::is_directory(status)) throw InputError(dir, 0, "not a folder: give the job's output folder (OUT of Makefile.example)");
+  const fs::path root(dir);
+
+  std::vector<const KnownFile*> missing;
+  const Reports reports = read_reports(root, missing);
+  const std::vector<Picture> pictures = read_pictures(root, missing);
+  const std::vector<Picture> drawings = options.drawings ? read_drawings(root) : std::vector<Picture>{};
+  if (reports.empty() && pictures.empty() && drawings.empty()) {
+    throw InputError(dir, 0,
+                     "no photomill report or picture here (calib.json, triangulate.json, fitsurf.json, toolpath.json, "
+                     "calib.png, cloud.png, surface.png, path.png, drawings/): give the job's output folder");
+  }
+
+  const std::string folder = fs::absolute(root).lexically_normal().filename().string().empty()
+                                 ? fs::absolute(root).lexically_normal().parent_path().filename().string()
+                                 : fs::absolute(root).lexically_normal().filename().string();
+  const std::string title = options.title.empty() ? "photomill job report: " + folder : options.title;
+  std::ostringstream o;
+  o.imbue(std::locale::classic());
+  o << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>" << html(title)
+    << "</title>\n<style>" << kStyle << "</style>\n</head>\n<body>\n<h1>" << html(title) << "</h1>\n";
+  write_contents(o, pictures, drawings, reports);
+  write_summary(o, reports, missing);
+  write_pictures(o, pictures, drawings);
+  write_every_figure(o, reports);
   o << "</body>\n</html>\n";
   return o.str();
 }

@@ -293,14 +293,25 @@ TargetSheet charuco_sheet(const CharucoTarget& target, const PageOptions& page) 
   return out;
 }
 
-TargetSheet plate_sheet(const PlateTarget& target, const PageOptions& page) {
-  check_margin(page);
-  if (!(target.marker_mm > 0) || !std::isfinite(target.marker_mm)) throw UsageError("--marker-mm must be a positive number");
-  if (target.first_id < 0) throw UsageError("--first-id must be 0 or more");
-  if (!(target.scale_bar_mm >= 0) || !std::isfinite(target.scale_bar_mm)) throw UsageError("--scale-bar-mm must be 0 or more");
-  const auto dictionary = load_dictionary(target.dictionary, target.dictionary_file);
+namespace {
+
+// The plate's measures (mm), checked.
+struct PlateGeometry {
+  double s = 0;           // side of a marker
+  double cell = 0;        // side of one of its cells
+  double pitch = 0;       // smallest distance between marker centres
+  double label_room = 0;  // height a marker label takes under a marker
+  bool labels = false;    // whether the markers get labels
+  double bar_strip = 0;   // height of the scale bar's strip (0: no scale bar)
+  std::string dict_name;  // the dictionary as the paragraphs name it
+};
+
+PlateGeometry plate_geometry(const PlateTarget& target, const detect::MarkerDictionary& dictionary) {
+  PlateGeometry g;
   const double s = target.marker_mm;
+  g.s = s;
   const double cell = s / (dictionary.bits_per_side() + 2);
+  g.cell = cell;
   if (cell < 0.5) {
     throw UsageError("--marker-mm " + mm(s) + ": the marker's cells would be " + mm(cell) +
                      " mm, too small to print and to photograph (0.5 mm at least)");
@@ -309,109 +320,169 @@ TargetSheet plate_sheet(const PlateTarget& target, const PageOptions& page) {
   // marker's black border to stand on white).
   const double min_pitch = s + 2 * cell;
   const double pitch = target.pitch_mm > 0 ? target.pitch_mm : 2 * s;
+  g.pitch = pitch;
   if (pitch < min_pitch || !std::isfinite(pitch)) {
     throw UsageError("--pitch-mm " + mm(pitch) + ": markers of " + mm(s) + " mm need " + mm(min_pitch) +
                      " mm at least between centres (one cell of white on each side)");
   }
   // The marker labels ("id 12") go one cell below each marker, when the gap leaves room for them.
-  const double label_room = cell + 1.2 * kSmallTextMm;
-  const bool labels = pitch - s >= cell + label_room;
-  const std::string dict_name = target.dictionary_file.empty() ? target.dictionary : target.dictionary_file;
+  g.label_room = cell + 1.2 * kSmallTextMm;
+  g.labels = pitch - s >= cell + g.label_room;
+  g.dict_name = target.dictionary_file.empty() ? target.dictionary : target.dictionary_file;
+  g.bar_strip = target.scale_bar_mm > 0 ? s + 2 * cell + g.label_room + 6 : 0;
+  return g;
+}
 
-  TargetSheet out;
-  out.detect_options = target.dictionary_file.empty() ? std::vector<std::string>{"--aruco", target.dictionary}
-                                                       : std::vector<std::string>{"--aruco-dict-file", target.dictionary_file};
-  const double bar_strip = target.scale_bar_mm > 0 ? s + 2 * cell + label_room + 6 : 0;
+// The plate's footer paragraphs for `count` markers.
+std::vector<std::string> plate_paragraphs(const PlateTarget& target, const PageOptions& page, const PlateGeometry& g,
+                                          const std::vector<std::string>& detect_options, int count) {
+  const int last = target.first_id + count - 1;
+  std::vector<std::string> p{
+      "photomill marker plate: " + std::to_string(count) + " ArUco markers of " + mm(g.s) + " mm, " + g.dict_name + ", ids " +
+          id_range(target.first_id, last) +
+          ". Control points (the CSV written with this sheet): point_id = id x 4 + corner, corners 0 top-left, "
+          "1 top-right, 2 bottom-right, 3 bottom-left; " +
+          (target.layout == PlateLayout::Ring ? "origin at the cross" : "origin at the centre of the grid") +
+          ", x right, y up, z = 0 on the sheet, mm. Find them with: detect " + detect_options[0] + " " +
+          detect_options[1] + ".",
+      print_paragraph("if it measures L mm, multiply the control points by L / 100 (or reprint).")};
+  if (target.scale_bar_mm > 0) {
+    p.push_back("Scale bar (the strip at the bottom): markers " + std::to_string(last + 1) + " and " +
+                std::to_string(last + 2) + ", corresponding corners " + mm(target.scale_bar_mm) +
+                " mm apart (the scale bars CSV written with this sheet); cut it out and glue it on a straight stiff bar.");
+  }
+  p.push_back(command_paragraph(page));
+  return non_empty(p);
+}
 
-  struct Layout {
-    Eigen::Vector2d page;
-    std::vector<Eigen::Vector2d> top_left;  // page frame
-    Eigen::Vector2d centre;
-    double area_bottom = 0;
-  };
-  auto paragraphs_for = [&](int count) {
-    const int last = target.first_id + count - 1;
-    std::vector<std::string> p{
-        "photomill marker plate: " + std::to_string(count) + " ArUco markers of " + mm(s) + " mm, " + dict_name + ", ids " +
-            id_range(target.first_id, last) +
-            ". Control points (the CSV written with this sheet): point_id = id x 4 + corner, corners 0 top-left, "
-            "1 top-right, 2 bottom-right, 3 bottom-left; " +
-            (target.layout == PlateLayout::Ring ? "origin at the cross" : "origin at the centre of the grid") +
-            ", x right, y up, z = 0 on the sheet, mm. Find them with: detect " + out.detect_options[0] + " " +
-            out.detect_options[1] + ".",
-        print_paragraph("if it measures L mm, multiply the control points by L / 100 (or reprint).")};
-    if (target.scale_bar_mm > 0) {
-      p.push_back("Scale bar (the strip at the bottom): markers " + std::to_string(last + 1) + " and " +
-                  std::to_string(last + 2) + ", corresponding corners " + mm(target.scale_bar_mm) +
-                  " mm apart (the scale bars CSV written with this sheet); cut it out and glue it on a straight stiff bar.");
-    }
-    p.push_back(command_paragraph(page));
-    return non_empty(p);
-  };
+// Where the markers go on one page size.
+struct MarkerLayout {
+  Eigen::Vector2d page;
+  std::vector<Eigen::Vector2d> top_left;  // page frame
+  Eigen::Vector2d centre;
+  double area_bottom = 0;
+};
+
+// The markers on a page of `size` whose footer is that of `count_guess` markers: a ring round the
+// printable area or a grid over it, spread evenly with the first and last at its edges.
+MarkerLayout layout_on(const PlateTarget& target, const PageOptions& page, const PlateGeometry& g,
+                       const std::vector<std::string>& detect_options, const Eigen::Vector2d& size, int count_guess) {
+  const double s = g.s;
   // Positions along one side of the area: n markers spread evenly, the first and last at its ends.
   auto spread = [&](double length) {
-    const int n = static_cast<int>(std::floor((length - s) / pitch + 1e-9)) + 1;
+    const int n = static_cast<int>(std::floor((length - s) / g.pitch + 1e-9)) + 1;
     return n;
   };
-  auto layout_on = [&](const Eigen::Vector2d& size, int count_guess) {
-    Layout l;
-    l.page = size;
-    const double w = size.x() - 2 * page.margin_mm;
-    const double footer = footer_height(paragraphs_for(count_guess), w);
-    l.area_bottom = page.margin_mm + footer + 3 + bar_strip;
-    const double area_left = page.margin_mm, area_right = size.x() - page.margin_mm;
-    const double area_top = size.y() - page.margin_mm;
-    const double bottom = l.area_bottom + (labels ? label_room : 0);  // lowest marker's bottom edge
-    const double aw = area_right - area_left, ah = area_top - bottom;
-    if (aw < s || ah < s) return l;
-    const int nx = spread(aw), ny = spread(ah);
-    auto x_at = [&](int i, int n) { return n == 1 ? area_left + (aw - s) / 2 : area_left + i * (aw - s) / (n - 1); };
-    auto y_at = [&](int j, int n) { return n == 1 ? area_top - (ah - s) / 2 : area_top - j * (ah - s) / (n - 1); };  // top edge
-    if (target.layout == PlateLayout::Grid) {
-      for (int j = 0; j < ny; ++j) {
-        for (int i = 0; i < nx; ++i) l.top_left.push_back({x_at(i, nx), y_at(j, ny)});
-      }
-    } else if (nx >= 2 && ny >= 2) {
-      for (int i = 0; i < nx; ++i) l.top_left.push_back({x_at(i, nx), y_at(0, ny)});
-      for (int j = 1; j < ny - 1; ++j) l.top_left.push_back({x_at(nx - 1, nx), y_at(j, ny)});
-      for (int i = nx - 1; i >= 0; --i) l.top_left.push_back({x_at(i, nx), y_at(ny - 1, ny)});
-      for (int j = ny - 2; j >= 1; --j) l.top_left.push_back({x_at(0, nx), y_at(j, ny)});
+  MarkerLayout l;
+  l.page = size;
+  const double w = size.x() - 2 * page.margin_mm;
+  const double footer = footer_height(plate_paragraphs(target, page, g, detect_options, count_guess), w);
+  l.area_bottom = page.margin_mm + footer + 3 + g.bar_strip;
+  const double area_left = page.margin_mm, area_right = size.x() - page.margin_mm;
+  const double area_top = size.y() - page.margin_mm;
+  const double bottom = l.area_bottom + (g.labels ? g.label_room : 0);  // lowest marker's bottom edge
+  const double aw = area_right - area_left, ah = area_top - bottom;
+  if (aw < s || ah < s) return l;
+  const int nx = spread(aw), ny = spread(ah);
+  auto x_at = [&](int i, int n) { return n == 1 ? area_left + (aw - s) / 2 : area_left + i * (aw - s) / (n - 1); };
+  auto y_at = [&](int j, int n) { return n == 1 ? area_top - (ah - s) / 2 : area_top - j * (ah - s) / (n - 1); };  // top edge
+  if (target.layout == PlateLayout::Grid) {
+    for (int j = 0; j < ny; ++j) {
+      for (int i = 0; i < nx; ++i) l.top_left.push_back({x_at(i, nx), y_at(j, ny)});
     }
-    l.centre = {area_left + aw / 2, bottom + ah / 2};
-    return l;
-  };
+  } else if (nx >= 2 && ny >= 2) {
+    for (int i = 0; i < nx; ++i) l.top_left.push_back({x_at(i, nx), y_at(0, ny)});
+    for (int j = 1; j < ny - 1; ++j) l.top_left.push_back({x_at(nx - 1, nx), y_at(j, ny)});
+    for (int i = nx - 1; i >= 0; --i) l.top_left.push_back({x_at(i, nx), y_at(ny - 1, ny)});
+    for (int j = ny - 2; j >= 1; --j) l.top_left.push_back({x_at(0, nx), y_at(j, ny)});
+  }
+  l.centre = {area_left + aw / 2, bottom + ah / 2};
+  return l;
+}
 
-  std::optional<Layout> chosen;
+// The page size (of those candidate_pages allows) that holds the most markers, 4 at least.
+MarkerLayout choose_layout(const PlateTarget& target, const PageOptions& page, const PlateGeometry& g,
+                           const std::vector<std::string>& detect_options) {
+  std::optional<MarkerLayout> chosen;
   std::ostringstream tried;
   for (const auto& size : candidate_pages(page, true)) {
     // The footer's height depends on the id range's digits only: lay out twice to settle it.
-    Layout l = layout_on(size, 1);
-    l = layout_on(size, std::max<int>(1, static_cast<int>(l.top_left.size())));
+    MarkerLayout l = layout_on(target, page, g, detect_options, size, 1);
+    l = layout_on(target, page, g, detect_options, size, std::max<int>(1, static_cast<int>(l.top_left.size())));
     tried << (tried.tellp() > 0 ? ", " : "") << l.top_left.size() << " on " << paper_name(page, size);
     if (l.top_left.size() < 4) continue;
     if (!chosen || l.top_left.size() > chosen->top_left.size()) chosen = l;
   }
   if (!chosen) {
-    throw UsageError("markers of " + mm(s) + " mm at a pitch of " + mm(pitch) + " mm: fewer than 4 fit the sheet (" + tried.str() +
-                     "): give smaller --marker-mm or --pitch-mm, or a larger --paper");
+    throw UsageError("markers of " + mm(g.s) + " mm at a pitch of " + mm(g.pitch) + " mm: fewer than 4 fit the sheet (" +
+                     tried.str() + "): give smaller --marker-mm or --pitch-mm, or a larger --paper");
   }
-  const int count = static_cast<int>(chosen->top_left.size());
+  return *chosen;
+}
+
+// The scale bar's strip under the area of `layout`: markers first_id + count and the next, their
+// labels, the bar's length, cut lines, and the four scale bars (one per corner).
+void add_scale_bar(const PlateTarget& target, const PageOptions& page, const PlateGeometry& g,
+                   const detect::MarkerDictionary& dictionary, const MarkerLayout& layout, int count, TargetSheet& out) {
+  Sheet& sheet = out.sheet;
+  const double s = g.s, cell = g.cell;
+  const double strip_top = layout.area_bottom - 3;
+  const double strip_bottom = strip_top - g.bar_strip + 3;
+  const double length = target.scale_bar_mm;
+  if (length < s + 2 * cell || length + s > sheet.width_mm - 2 * page.margin_mm - 2 * cell) {
+    throw UsageError("--scale-bar-mm " + mm(length) + ": the bar's two markers need " + mm(s + 2 * cell) +
+                     " mm at least and " + mm(sheet.width_mm - 2 * page.margin_mm - 2 * cell - s) +
+                     " mm at most on this sheet");
+  }
+  const double x0 = (sheet.width_mm - length - s) / 2;
+  const double y_top = strip_top - cell;
+  const int a = target.first_id + count, b = a + 1;
+  add_marker(sheet, marker_cells(dictionary, a), {x0, y_top}, s);
+  add_marker(sheet, marker_cells(dictionary, b), {x0 + length, y_top}, s);
+  add_text(sheet, x0, y_top - s - cell - kSmallTextMm, kSmallTextMm, "id " + std::to_string(a));
+  add_text(sheet, x0 + length, y_top - s - cell - kSmallTextMm, kSmallTextMm, "id " + std::to_string(b));
+  add_text(sheet, x0 + s + 2 * cell, y_top - s / 2, kSmallTextMm, "scale bar: " + mm(length) + " mm, corner to corner");
+  // Cut lines round the strip.
+  const double l = x0 - 2 * cell, r = x0 + length + s + 2 * cell;
+  const Eigen::Vector2d p[4] = {{l, strip_bottom}, {r, strip_bottom}, {r, strip_top}, {l, strip_top}};
+  for (int k = 0; k < 4; ++k) sheet.lines.push_back({p[k], p[(k + 1) % 4], 0.15, 0.5});
+  for (int c = 0; c < 4; ++c) {
+    out.scale_bars.push_back({static_cast<PointId>(a) * 4 + c, static_cast<PointId>(b) * 4 + c, length, {}});
+  }
+}
+
+}  // namespace
+
+TargetSheet plate_sheet(const PlateTarget& target, const PageOptions& page) {
+  check_margin(page);
+  if (!(target.marker_mm > 0) || !std::isfinite(target.marker_mm)) throw UsageError("--marker-mm must be a positive number");
+  if (target.first_id < 0) throw UsageError("--first-id must be 0 or more");
+  if (!(target.scale_bar_mm >= 0) || !std::isfinite(target.scale_bar_mm)) throw UsageError("--scale-bar-mm must be 0 or more");
+  const auto dictionary = load_dictionary(target.dictionary, target.dictionary_file);
+  const PlateGeometry g = plate_geometry(target, dictionary);
+  const double s = g.s;
+
+  TargetSheet out;
+  out.detect_options = target.dictionary_file.empty() ? std::vector<std::string>{"--aruco", target.dictionary}
+                                                       : std::vector<std::string>{"--aruco-dict-file", target.dictionary_file};
+  const MarkerLayout chosen = choose_layout(target, page, g, out.detect_options);
+  const int count = static_cast<int>(chosen.top_left.size());
   const int extra = target.scale_bar_mm > 0 ? 2 : 0;
   if (target.first_id + count + extra > dictionary.marker_count()) {
     throw UsageError("the plate needs ids " + id_range(target.first_id, target.first_id + count + extra - 1) + "; " +
-                     dict_name + " has " + std::to_string(dictionary.marker_count()) +
+                     g.dict_name + " has " + std::to_string(dictionary.marker_count()) +
                      " markers: use a larger dictionary, a smaller --first-id, or larger --marker-mm or --pitch-mm");
   }
 
   Sheet& sheet = out.sheet;
-  sheet.width_mm = chosen->page.x();
-  sheet.height_mm = chosen->page.y();
-  sheet.title = "photomill marker plate, " + dict_name + " ids " + id_range(target.first_id, target.first_id + count - 1) +
+  sheet.width_mm = chosen.page.x();
+  sheet.height_mm = chosen.page.y();
+  sheet.title = "photomill marker plate, " + g.dict_name + " ids " + id_range(target.first_id, target.first_id + count - 1) +
                 ", " + mm(s) + " mm";
-  const Eigen::Vector2d origin = chosen->centre;
+  const Eigen::Vector2d origin = chosen.centre;
   for (int k = 0; k < count; ++k) {
     const int id = target.first_id + k;
-    const Eigen::Vector2d tl = chosen->top_left[static_cast<std::size_t>(k)];
+    const Eigen::Vector2d tl = chosen.top_left[static_cast<std::size_t>(k)];
     add_marker(sheet, marker_cells(dictionary, id), tl, s);
     out.marker_ids.push_back(id);
     const Eigen::Vector2d corners[4] = {tl, tl + Eigen::Vector2d(s, 0), tl + Eigen::Vector2d(s, -s), tl + Eigen::Vector2d(0, -s)};
@@ -419,7 +490,7 @@ TargetSheet plate_sheet(const PlateTarget& target, const PageOptions& page) {
       const Eigen::Vector2d w = corners[c] - origin;
       out.control_points.push_back({static_cast<PointId>(id) * 4 + c, Eigen::Vector3d(w.x(), w.y(), 0), {}});
     }
-    if (labels) add_text(sheet, tl.x(), tl.y() - s - cell - kSmallTextMm, kSmallTextMm, "id " + std::to_string(id));
+    if (g.labels) add_text(sheet, tl.x(), tl.y() - s - g.cell - kSmallTextMm, kSmallTextMm, "id " + std::to_string(id));
   }
   if (target.layout == PlateLayout::Ring) {
     // The frame's origin and axes, under the part.
@@ -428,32 +499,8 @@ TargetSheet plate_sheet(const PlateTarget& target, const PageOptions& page) {
     add_text(sheet, origin.x() + 21, origin.y() - 0.4 * kTextMm, kTextMm, "x");
     add_text(sheet, origin.x() - 0.3 * kTextMm, origin.y() + 21.5, kTextMm, "y");
   }
-  if (target.scale_bar_mm > 0) {
-    const double strip_top = chosen->area_bottom - 3;
-    const double strip_bottom = strip_top - bar_strip + 3;
-    const double length = target.scale_bar_mm;
-    if (length < s + 2 * cell || length + s > sheet.width_mm - 2 * page.margin_mm - 2 * cell) {
-      throw UsageError("--scale-bar-mm " + mm(length) + ": the bar's two markers need " + mm(s + 2 * cell) +
-                       " mm at least and " + mm(sheet.width_mm - 2 * page.margin_mm - 2 * cell - s) +
-                       " mm at most on this sheet");
-    }
-    const double x0 = (sheet.width_mm - length - s) / 2;
-    const double y_top = strip_top - cell;
-    const int a = target.first_id + count, b = a + 1;
-    add_marker(sheet, marker_cells(dictionary, a), {x0, y_top}, s);
-    add_marker(sheet, marker_cells(dictionary, b), {x0 + length, y_top}, s);
-    add_text(sheet, x0, y_top - s - cell - kSmallTextMm, kSmallTextMm, "id " + std::to_string(a));
-    add_text(sheet, x0 + length, y_top - s - cell - kSmallTextMm, kSmallTextMm, "id " + std::to_string(b));
-    add_text(sheet, x0 + s + 2 * cell, y_top - s / 2, kSmallTextMm, "scale bar: " + mm(length) + " mm, corner to corner");
-    // Cut lines round the strip.
-    const double l = x0 - 2 * cell, r = x0 + length + s + 2 * cell;
-    const Eigen::Vector2d p[4] = {{l, strip_bottom}, {r, strip_bottom}, {r, strip_top}, {l, strip_top}};
-    for (int k = 0; k < 4; ++k) sheet.lines.push_back({p[k], p[(k + 1) % 4], 0.15, 0.5});
-    for (int c = 0; c < 4; ++c) {
-      out.scale_bars.push_back({static_cast<PointId>(a) * 4 + c, static_cast<PointId>(b) * 4 + c, length, {}});
-    }
-  }
-  add_footer(sheet, paragraphs_for(count), page.margin_mm);
+  if (target.scale_bar_mm > 0) add_scale_bar(target, page, g, dictionary, chosen, count, out);
+  add_footer(sheet, plate_paragraphs(target, page, g, out.detect_options, count), page.margin_mm);
   return out;
 }
 

@@ -74,6 +74,15 @@ std::vector<Eigen::Vector3d> link_points(const Eigen::Vector3d& a, const Eigen::
   return out;
 }
 
+// The steps of generate_toolpath, in its order (defined after it).
+std::vector<WorkItem> work_items(const BSplineSurface& surface, const ToolpathOptions& o, const std::vector<PassLine>& lines,
+                                 std::size_t& edge_passes);
+void side_step_stats(const std::vector<PassLine>& lines, ToolpathStats& st);
+double collect_segments(const std::vector<WorkItem>& items, std::vector<MarchResult>& marched, ToolpathResult& result);
+double safe_plane(const ToolpathOptions& o, double top);
+void write_cl_moves(const DropCutter& drop, const ToolpathOptions& o, ToolpathResult& result);
+void move_stats(const ClData& cl, ToolpathStats& st);
+
 }  // namespace
 
 void validate(const ToolpathOptions& o) {
@@ -132,35 +141,7 @@ ToolpathResult generate_toolpath(const BSplineSurface& surface, const ToolpathOp
   forward.gouge_tol_mm = o.gouge_tol_mm;
   forward.max_step_mm = o.max_step_mm;
   forward.enforce_gouge = o.lift;
-
-  // The pieces in machining order: zig-zag reverses every other line.
-  std::vector<WorkItem> items;
-  for (std::size_t k = 0; k < result.lines.size(); ++k) {
-    const auto& ivs = result.lines[k].intervals;
-    const bool reverse = o.pattern == Pattern::ZigZag && k % 2 == 1;
-    const double w = result.lines[k].w;
-    if (!reverse) {
-      for (const Interval& iv : ivs) items.push_back({k, o.direction, w, iv.t0, iv.t1});
-    } else {
-      for (auto it = ivs.rbegin(); it != ivs.rend(); ++it) items.push_back({k, o.direction, w, it->t1, it->t0});
-    }
-  }
-  if (items.empty()) throw GeometryError("no pass crosses the inside of the boundary polygon");
-  // Edge passes along slanted domain edges (without a boundary polygon, whose edges the passes
-  // overrun instead): the edge nearer to where the last pass ended first.
-  if (surface.boundary_uv.empty()) {
-    const auto [t0, t1] = along_domain(surface, o.direction);
-    const auto [w0, w1] = across_domain(surface, o.direction);
-    const PassDirection other = o.direction == PassDirection::U ? PassDirection::V : PassDirection::U;
-    const bool ended_high = items.back().t_to == t1;
-    bool downwards = true;  // the last line lies at w1: the first edge pass runs back to w0
-    for (const double t_end : ended_high ? std::array<double, 2>{t1, t0} : std::array<double, 2>{t0, t1}) {
-      if (!edge_is_slanted(surface, o.direction, t_end, result.lines)) continue;
-      const std::size_t index = result.lines.size() + result.stats.edge_passes++;
-      items.push_back({index, other, t_end, downwards ? w1 : w0, downwards ? w0 : w1});
-      downwards = !downwards;
-    }
-  }
+  const std::vector<WorkItem> items = work_items(surface, o, result.lines, result.stats.edge_passes);
 
   // Steps 2, 3, 4 (and 7) on every piece, in parallel: each writes only its own slot.
   std::vector<MarchResult> marched(items.size());
@@ -173,14 +154,87 @@ ToolpathResult generate_toolpath(const BSplineSurface& surface, const ToolpathOp
 
   ToolpathStats& st = result.stats;
   st.passes = result.lines.size();
+  side_step_stats(result.lines, st);
+  const double top_tip = collect_segments(items, marched, result);
+  st.safe_z_mm = safe_plane(o, std::max(drop.top_z(), top_tip));
+  write_cl_moves(drop, o, result);
+  move_stats(result.cl, st);
+  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+namespace {
+
+// The pieces in machining order: zig-zag reverses every other line. Then the edge passes along
+// slanted domain edges (without a boundary polygon, whose edges the passes overrun instead): the
+// edge nearer to where the last pass ended first; `edge_passes` counts them.
+std::vector<WorkItem> work_items(const BSplineSurface& surface, const ToolpathOptions& o, const std::vector<PassLine>& lines,
+                                 std::size_t& edge_passes) {
+  std::vector<WorkItem> items;
+  for (std::size_t k = 0; k < lines.size(); ++k) {
+    const auto& ivs = lines[k].intervals;
+    const bool reverse = o.pattern == Pattern::ZigZag && k % 2 == 1;
+    const double w = lines[k].w;
+    if (!reverse) {
+      for (const Interval& iv : ivs) items.push_back({k, o.direction, w, iv.t0, iv.t1});
+    } else {
+      for (auto it = ivs.rbegin(); it != ivs.rend(); ++it) items.push_back({k, o.direction, w, it->t1, it->t0});
+    }
+  }
+  if (items.empty()) throw GeometryError("no pass crosses the inside of the boundary polygon");
+  if (surface.boundary_uv.empty()) {
+    const auto [t0, t1] = along_domain(surface, o.direction);
+    const auto [w0, w1] = across_domain(surface, o.direction);
+    const PassDirection other = o.direction == PassDirection::U ? PassDirection::V : PassDirection::U;
+    const bool ended_high = items.back().t_to == t1;
+    bool downwards = true;  // the last line lies at w1: the first edge pass runs back to w0
+    for (const double t_end : ended_high ? std::array<double, 2>{t1, t0} : std::array<double, 2>{t0, t1}) {
+      if (!edge_is_slanted(surface, o.direction, t_end, lines)) continue;
+      const std::size_t index = lines.size() + edge_passes++;
+      items.push_back({index, other, t_end, downwards ? w1 : w0, downwards ? w0 : w1});
+      downwards = !downwards;
+    }
+  }
+  return items;
+}
+
+// The smallest and largest side step between neighbouring lines (0, 0 without any).
+void side_step_stats(const std::vector<PassLine>& lines, ToolpathStats& st) {
   st.min_side_step_mm = kInf;
   st.max_side_step_mm = 0;
-  for (const PassLine& line : result.lines) {
+  for (const PassLine& line : lines) {
     if (line.across_step <= 0) continue;
     st.min_side_step_mm = std::min(st.min_side_step_mm, line.side_step_mm);
     st.max_side_step_mm = std::max(st.max_side_step_mm, line.side_step_mm);
   }
   if (!std::isfinite(st.min_side_step_mm)) st.min_side_step_mm = 0;
+}
+
+// Point k of `seg`, a gouging one, into the gouge runs: it extends the last run when the point
+// before it on the same pass gouged too, else starts one.
+void add_to_gouge_runs(const PassSegment& seg, std::size_t k, std::vector<GougeRun>& gouges) {
+  const CutterLocation& p = seg.points[k];
+  const bool extend = k > 0 && seg.points[k - 1].gouge && !gouges.empty() && gouges.back().pass == seg.pass;
+  if (!extend) {
+    GougeRun run;
+    run.pass = seg.pass;
+    run.first_cc = p.cc;
+    run.deepest_contact = p.contact;
+    run.min_concave_radius_mm = kInf;
+    gouges.push_back(run);
+  }
+  GougeRun& run = gouges.back();
+  run.last_cc = p.cc;
+  ++run.points;
+  if (p.gouge_depth_mm >= run.max_depth_mm) run.max_depth_mm = p.gouge_depth_mm, run.deepest_contact = p.contact;
+  run.min_concave_radius_mm = std::min(run.min_concave_radius_mm, p.concave_radius_mm);
+  run.lifted = run.lifted || p.lifted;
+}
+
+// The marched pieces into result.segments (their points moved out of `marched`), with the
+// statistics of their steps and gouges; returns the highest tip (-inf without points).
+double collect_segments(const std::vector<WorkItem>& items, std::vector<MarchResult>& marched, ToolpathResult& result) {
+  ToolpathStats& st = result.stats;
   st.min_forward_step_mm = kInf;
   double top_tip = -kInf;
   for (std::size_t i = 0; i < items.size(); ++i) {
@@ -204,22 +258,7 @@ ToolpathResult generate_toolpath(const BSplineSurface& surface, const ToolpathOp
       if (p.gouge) {
         ++st.gouge_points;
         st.max_gouge_depth_mm = std::max(st.max_gouge_depth_mm, p.gouge_depth_mm);
-        const bool extend = k > 0 && seg.points[k - 1].gouge && !result.gouges.empty() &&
-                            result.gouges.back().pass == seg.pass;
-        if (!extend) {
-          GougeRun run;
-          run.pass = seg.pass;
-          run.first_cc = p.cc;
-          run.deepest_contact = p.contact;
-          run.min_concave_radius_mm = kInf;
-          result.gouges.push_back(run);
-        }
-        GougeRun& run = result.gouges.back();
-        run.last_cc = p.cc;
-        ++run.points;
-        if (p.gouge_depth_mm >= run.max_depth_mm) run.max_depth_mm = p.gouge_depth_mm, run.deepest_contact = p.contact;
-        run.min_concave_radius_mm = std::min(run.min_concave_radius_mm, p.concave_radius_mm);
-        run.lifted = run.lifted || p.lifted;
+        add_to_gouge_runs(seg, k, result.gouges);
       }
     }
     st.cl_points += seg.points.size();
@@ -227,22 +266,27 @@ ToolpathResult generate_toolpath(const BSplineSurface& surface, const ToolpathOp
   }
   if (!std::isfinite(st.min_forward_step_mm)) st.min_forward_step_mm = 0;
   st.segments = result.segments.size();
+  return top_tip;
+}
 
-  // Safe plane: above both the surface and the path.
-  const double top = std::max(drop.top_z(), top_tip);
+// Safe plane: above both the surface and the path (`top`, the higher of the two).
+double safe_plane(const ToolpathOptions& o, double top) {
   if (o.safe_z_mm) {
     if (*o.safe_z_mm < top) {
       throw UsageError("--safe-z-mm " + mm(*o.safe_z_mm) + " is below the top of the surface and the path (" + mm(top) +
                        " mm)");
     }
-    st.safe_z_mm = *o.safe_z_mm;
-  } else {
-    st.safe_z_mm = top + o.retract_mm;
+    return *o.safe_z_mm;
   }
+  return top + o.retract_mm;
+}
 
-  // CL moves: rapid to the safe plane, rapid down to the clearance height, plunge at the plunge
-  // feed, cut; between pieces a zig-zag link at cutting feed (consecutive lines, shorter than the
-  // tool diameter) or retract - rapid - plunge.
+// CL moves: rapid to the safe plane, rapid down to the clearance height, plunge at the plunge
+// feed, cut; between pieces a zig-zag link at cutting feed (consecutive lines, shorter than the
+// tool diameter) or retract - rapid - plunge.
+void write_cl_moves(const DropCutter& drop, const ToolpathOptions& o, ToolpathResult& result) {
+  const double R = o.tool_radius_mm;
+  ToolpathStats& st = result.stats;
   ClData& cl = result.cl;
   cl.part_name = o.part_name;
   cl.tool_diameter_mm = 2 * R;
@@ -278,14 +322,17 @@ ToolpathResult generate_toolpath(const BSplineSurface& surface, const ToolpathOp
   }
   const Eigen::Vector3d last = cl.moves.back().tip_mm;
   rapid({last.x(), last.y(), safe});
+}
 
+// The number of moves and the lengths of the feed and the rapid moves.
+void move_stats(const ClData& cl, ToolpathStats& st) {
   st.moves = cl.moves.size();
   for (std::size_t k = 1; k < cl.moves.size(); ++k) {
     const double len = (cl.moves[k].tip_mm - cl.moves[k - 1].tip_mm).norm();
     (cl.moves[k].kind == ClMove::Kind::Feed ? st.feed_length_mm : st.rapid_length_mm) += len;
   }
-  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return result;
 }
+
+}  // namespace
 
 }  // namespace photomill::toolpath

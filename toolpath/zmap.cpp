@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <string>
+#include <utility>
 #include <cmath>
 #include <vector>
 
@@ -217,6 +219,324 @@ struct Segment {
   Eigen::Vector3d a, b;  // ball centres
 };
 
+// The z-map's nodes: (lo_x + i cell, lo_y + j cell) for i < nx, j < ny, stored row by row (k = j nx + i).
+struct Grid {
+  Eigen::Vector2d lo, hi;  // the window (mm)
+  double cell = 0;
+  long nx = 0, ny = 0;
+
+  std::size_t size() const { return static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny); }
+  Eigen::Vector2d node_xy(long i, long j) const { return Eigen::Vector2d(lo.x() + i * cell, lo.y() + j * cell); }
+  Eigen::Vector2d node_xy(std::size_t k) const { return node_xy(static_cast<long>(k % nx), static_cast<long>(k / nx)); }
+};
+
+// The grid over the surface's extent, cut to the options' window.
+Grid make_grid(const SurfaceInverter& inv, const ZmapOptions& o) {
+  Grid g;
+  g.cell = o.cell_mm;
+  g.lo = inv.lo(), g.hi = inv.hi();
+  if (o.window_min) g.lo = g.lo.cwiseMax(*o.window_min);
+  if (o.window_max) g.hi = g.hi.cwiseMin(*o.window_max);
+  if (!(g.hi.x() >= g.lo.x() && g.hi.y() >= g.lo.y())) throw GeometryError("the z-map window does not overlap the surface");
+  g.nx = static_cast<long>(std::floor((g.hi.x() - g.lo.x()) / o.cell_mm)) + 1;
+  g.ny = static_cast<long>(std::floor((g.hi.y() - g.lo.y()) / o.cell_mm)) + 1;
+  if (static_cast<double>(g.nx) * static_cast<double>(g.ny) > 1e8) {
+    throw GeometryError("the z-map would have " + std::to_string(g.nx) + " x " + std::to_string(g.ny) +
+                        " nodes; use a larger cell or a window");
+  }
+  return g;
+}
+
+// The surface under the nodes: height z (+inf off the surface or outside its boundary polygon),
+// n_z of its unit normal, and the (u, v) the height was found at.
+struct SurfaceSamples {
+  std::vector<double> z;
+  std::vector<float> nz;
+  std::vector<Eigen::Vector2d> uv;
+};
+
+// Heights by Newton from the previous node of the row (from the nearest coarse sample after a miss).
+void surface_heights(const SurfaceInverter& inv, const Grid& g, int threads, SurfaceSamples& s) {
+  const long nx = g.nx;
+  geometry::parallel_for(static_cast<std::size_t>(g.ny), threads, [&](std::size_t jj) {
+    const long j = static_cast<long>(jj);
+    SurfaceInverter::Jacobian jac;
+    bool have_guess = false;
+    Eigen::Vector2d uv = Eigen::Vector2d::Zero();
+    for (long i = 0; i < nx; ++i) {
+      const Eigen::Vector2d xy = g.node_xy(i, j);
+      if (!have_guess) {
+        if (!inv.nearest_uv(xy, uv)) continue;
+        jac.valid = false;
+      }
+      double z = 0;
+      Eigen::Vector2d trial = uv;
+      if (inv.solve(xy, trial, jac, z)) {
+        const std::size_t k = static_cast<std::size_t>(j) * nx + i;
+        s.z[k] = z;
+        s.uv[k] = trial;
+        uv = trial;
+        have_guess = true;
+      } else {
+        have_guess = false;
+      }
+    }
+  });
+}
+
+// n_z = 1 / sqrt(1 + z_x^2 + z_y^2) from central differences of the heights (one-sided at the
+// edges; error O(cell^2 z''')).
+void normal_z(const Grid& g, int threads, SurfaceSamples& s) {
+  const long nx = g.nx, ny = g.ny;
+  const std::vector<double>& zs = s.z;
+  geometry::parallel_for(static_cast<std::size_t>(ny), threads, [&](std::size_t jj) {
+    const long j = static_cast<long>(jj);
+    const auto z_at = [&](long i, long jn) {
+      return i < 0 || jn < 0 || i >= nx || jn >= ny ? kInf : zs[static_cast<std::size_t>(jn) * nx + i];
+    };
+    const auto slope = [&](double zm, double z0, double zp) {
+      if (std::isfinite(zm) && std::isfinite(zp)) return (zp - zm) / (2 * g.cell);
+      if (std::isfinite(zp)) return (zp - z0) / g.cell;
+      if (std::isfinite(zm)) return (z0 - zm) / g.cell;
+      return 0.0;
+    };
+    for (long i = 0; i < nx; ++i) {
+      const std::size_t k = static_cast<std::size_t>(j) * nx + i;
+      const double z0 = zs[k];
+      if (!std::isfinite(z0)) continue;
+      const double zx = slope(z_at(i - 1, j), z0, z_at(i + 1, j)), zy = slope(z_at(i, j - 1), z0, z_at(i, j + 1));
+      s.nz[k] = static_cast<float>(1.0 / std::sqrt(1 + zx * zx + zy * zy));
+    }
+  });
+}
+
+// The surface's height under every node and n_z there; nodes outside the boundary polygon are
+// dropped after n_z is taken (the differences there still see the heights beyond it).
+SurfaceSamples sample_surface(const BSplineSurface& surface, const SurfaceInverter& inv, const Grid& g, int threads) {
+  const std::size_t N = g.size();
+  SurfaceSamples s{std::vector<double>(N, kInf), std::vector<float>(N, 0.0f), std::vector<Eigen::Vector2d>(N)};
+  surface_heights(inv, g, threads, s);
+  normal_z(g, threads, s);
+  if (!surface.boundary_uv.empty()) {
+    for (std::size_t k = 0; k < N; ++k) {
+      if (std::isfinite(s.z[k]) && !inside_polygon(surface.boundary_uv, s.uv[k])) s.z[k] = kInf;
+    }
+  }
+  return s;
+}
+
+// The ball centres of every move (centres = tips + R z).
+std::vector<Segment> ball_segments(const ClData& cl, double R) {
+  std::vector<Segment> segs;
+  for (std::size_t k = 1; k < cl.moves.size(); ++k) {
+    const Eigen::Vector3d up(0, 0, R);
+    segs.push_back({cl.moves[k - 1].tip_mm + up, cl.moves[k].tip_mm + up});
+  }
+  return segs;
+}
+
+// Lowers the cut heights of rows jb0..jb1 to where the ball swept along `sg` reaches:
+// swept_ball_bottom with the segment's invariants hoisted and sigma0, perp stepped along the
+// row; a node whose cut is already below the lowest this move can reach there is skipped.
+void sweep_rows(const Segment& sg, const Grid& g, double R, long jb0, long jb1, std::vector<double>& zc) {
+  const double R2 = R * R;
+  const Eigen::Vector2d d = sg.b.head<2>() - sg.a.head<2>();
+  const double l = d.norm();
+  const bool point_like = l < 1e-12;
+  const Eigen::Vector2d e = point_like ? Eigen::Vector2d(1, 0) : Eigen::Vector2d(d / l);
+  const double m = point_like ? 0.0 : (sg.b.z() - sg.a.z()) / l;
+  const double k = std::sqrt(1 + m * m);
+  const double zmin = std::min(sg.a.z(), sg.b.z());
+  for (long j = jb0; j <= jb1; ++j) {
+    const double y = g.lo.y() + j * g.cell;
+    double x0, x1;
+    if (!stadium_row(sg.a.head<2>(), sg.b.head<2>(), R, y, x0, x1)) continue;
+    const long i0 = std::max(0L, static_cast<long>(std::ceil((x0 - g.lo.x()) / g.cell)));
+    const long i1 = std::min(g.nx - 1, static_cast<long>(std::floor((x1 - g.lo.x()) / g.cell)));
+    double* row = zc.data() + static_cast<std::size_t>(j) * g.nx;
+    if (point_like) {
+      for (long i = i0; i <= i1; ++i) {
+        const double z = swept_ball_bottom(sg.a, sg.b, R, {g.lo.x() + i * g.cell, y});
+        if (z < row[i]) row[i] = z;
+      }
+      continue;
+    }
+    const double wy = y - sg.a.y();
+    for (long i = i0; i <= i1; ++i) {
+      const double wx = g.lo.x() + i * g.cell - sg.a.x();
+      const double perp = e.x() * wy - e.y() * wx;
+      const double r2 = R2 - perp * perp;
+      if (!(r2 > 0)) continue;
+      const double dz = zmin - row[i];
+      if (dz >= 0 && dz * dz >= r2) continue;
+      const double sigma0 = wx * e.x() + wy * e.y();
+      const double r = std::sqrt(r2);
+      const double s_star = sigma0 - m * r / k;
+      double z;
+      if (s_star >= 0 && s_star <= l) {
+        z = sg.a.z() + m * sigma0 - r * k;
+      } else {
+        const double sc = s_star < 0 ? 0.0 : l;
+        const double ds = sc - sigma0;
+        const double q = r2 - ds * ds;
+        if (!(q > 0)) continue;
+        z = sg.a.z() + m * sc - std::sqrt(q);
+      }
+      if (z < row[i]) row[i] = z;
+    }
+  }
+}
+
+// The cut height at every node: the lowest the ball reaches there along all moves (+inf where it
+// never passes). Rows in blocks of 8, each block swept in parallel by the moves that reach it.
+std::vector<double> cut_heights(const std::vector<Segment>& segs, const Grid& g, double R, int threads) {
+  std::vector<double> zc(g.size(), kInf);
+  constexpr long kRowsPerBlock = 8;
+  const std::size_t blocks = static_cast<std::size_t>((g.ny + kRowsPerBlock - 1) / kRowsPerBlock);
+  std::vector<std::vector<int>> block_segs(blocks);
+  for (std::size_t s = 0; s < segs.size(); ++s) {
+    const double y0 = std::min(segs[s].a.y(), segs[s].b.y()) - R, y1 = std::max(segs[s].a.y(), segs[s].b.y()) + R;
+    const long j0 = std::max(0L, static_cast<long>(std::ceil((y0 - g.lo.y()) / g.cell)));
+    const long j1 = std::min(g.ny - 1, static_cast<long>(std::floor((y1 - g.lo.y()) / g.cell)));
+    for (long b = j0 / kRowsPerBlock; j0 <= j1 && b <= j1 / kRowsPerBlock; ++b) block_segs[static_cast<std::size_t>(b)].push_back(static_cast<int>(s));
+  }
+  geometry::parallel_for(blocks, threads, [&](std::size_t b) {
+    const long jb0 = static_cast<long>(b) * kRowsPerBlock, jb1 = std::min(g.ny - 1, jb0 + kRowsPerBlock - 1);
+    for (int s : block_segs[b]) sweep_rows(segs[static_cast<std::size_t>(s)], g, R, jb0, jb1, zc);
+  });
+  return zc;
+}
+
+// The grid figures of ZmapResult; `excess` gets (normal excess, node) of every machined node.
+ZmapResult compare_at_nodes(const SurfaceSamples& s, const std::vector<double>& zc, const Grid& g, double stock_mm,
+                            std::vector<std::pair<double, std::size_t>>& excess) {
+  ZmapResult res;
+  res.cell_mm = g.cell;
+  const std::vector<double>& zs = s.z;
+  for (std::size_t k = 0; k < g.size(); ++k) {
+    if (!std::isfinite(zs[k])) continue;
+    ++res.nodes;
+    if (!std::isfinite(zc[k])) {
+      ++res.unmachined;
+      continue;
+    }
+    const double dz = zc[k] - zs[k];
+    const double e = dz * s.nz[k] - stock_mm;
+    res.max_excess_z_mm = std::max(res.max_excess_z_mm, dz);
+    excess.push_back({e, k});
+    if (e > res.grid_max_scallop_mm) res.grid_max_scallop_mm = e, res.max_scallop_at = {g.node_xy(k).x(), g.node_xy(k).y(), zs[k]};
+    if (-e > res.grid_max_gouge_mm) res.grid_max_gouge_mm = -e, res.max_gouge_at = {g.node_xy(k).x(), g.node_xy(k).y(), zs[k]};
+  }
+  res.max_scallop_mm = res.grid_max_scallop_mm;
+  res.max_gouge_mm = res.grid_max_gouge_mm;
+  return res;
+}
+
+// Refinement between nodes: the cut height at any (x, y) from the moves near it (buckets of
+// side R), the surface's by Newton from the node's (u, v); a compass search from each of the
+// worst nodes (kept at least 4 cells apart) climbs to the local extreme.
+class ExtremeSearch {
+public:
+  ExtremeSearch(const BSplineSurface& surface, const SurfaceInverter& inv, const std::vector<Segment>& segs,
+                const Grid& g, const ZmapOptions& o)
+      : surface_(surface), inv_(inv), segs_(segs), g_(g), o_(o), R_(o.tool_radius_mm), bsize_(R_) {
+    const double R = R_;
+    bx_ = std::max(1, static_cast<int>(std::ceil((g.hi.x() - g.lo.x() + 2 * R) / bsize_)));
+    by_ = std::max(1, static_cast<int>(std::ceil((g.hi.y() - g.lo.y() + 2 * R) / bsize_)));
+    blo_ = g.lo - Eigen::Vector2d(R, R);
+    buckets_.resize(static_cast<std::size_t>(bx_) * by_);
+    for (std::size_t s = 0; s < segs.size(); ++s) {
+      const Eigen::Vector2d mn = segs[s].a.head<2>().cwiseMin(segs[s].b.head<2>()) - Eigen::Vector2d(R, R);
+      const Eigen::Vector2d mx = segs[s].a.head<2>().cwiseMax(segs[s].b.head<2>()) + Eigen::Vector2d(R, R);
+      const int x0 = std::max(0, static_cast<int>(std::floor((mn.x() - blo_.x()) / bsize_)));
+      const int x1 = std::min(bx_ - 1, static_cast<int>(std::floor((mx.x() - blo_.x()) / bsize_)));
+      const int y0 = std::max(0, static_cast<int>(std::floor((mn.y() - blo_.y()) / bsize_)));
+      const int y1 = std::min(by_ - 1, static_cast<int>(std::floor((mx.y() - blo_.y()) / bsize_)));
+      for (int y = y0; y <= y1; ++y) {
+        for (int x = x0; x <= x1; ++x) buckets_[static_cast<std::size_t>(y) * bx_ + x].push_back(static_cast<int>(s));
+      }
+    }
+  }
+
+  // Climbs from the worst nodes of `excess` (sign = +1: scallop, -1: gouge; partially sorted
+  // here); raises best (and best_at) to the largest signed excess found.
+  void refine(double sign, std::vector<std::pair<double, std::size_t>>& excess, const std::vector<Eigen::Vector2d>& uvs,
+              double& best, Eigen::Vector3d& best_at) const {
+    const std::size_t K = static_cast<std::size_t>(o_.refine_candidates);
+    const std::size_t pool = std::min(excess.size(), K * 200);
+    auto cmp = [&](const auto& a, const auto& b) { return sign * a.first > sign * b.first; };
+    std::partial_sort(excess.begin(), excess.begin() + static_cast<long>(pool), excess.end(), cmp);
+    std::vector<Eigen::Vector2d> picked;
+    const double apart2 = 16 * o_.cell_mm * o_.cell_mm;
+    for (std::size_t c = 0; c < pool && picked.size() < K; ++c) {
+      const std::size_t k = excess[c].second;
+      const Eigen::Vector2d xy = g_.node_xy(k);
+      if (std::any_of(picked.begin(), picked.end(), [&](const Eigen::Vector2d& p) { return (p - xy).squaredNorm() < apart2; })) continue;
+      picked.push_back(xy);
+      Eigen::Vector2d uv = uvs[k];
+      Eigen::Vector3d at = Eigen::Vector3d::Zero();
+      Eigen::Vector2d x = xy;
+      double f = value_at(x, uv, sign, at);
+      if (!std::isfinite(f)) continue;
+      Eigen::Vector3d f_at = at;
+      for (double step = 0.5 * o_.cell_mm; step > 1e-5; step *= 0.5) {
+        for (bool moved = true; moved;) {
+          moved = false;
+          for (int d = 0; d < 8; ++d) {
+            const double ang = d * 0.7853981633974483;
+            const Eigen::Vector2d y = x + step * Eigen::Vector2d(std::cos(ang), std::sin(ang));
+            Eigen::Vector2d uv2 = uv;
+            const double fy = value_at(y, uv2, sign, at);
+            if (fy > f) {
+              f = fy, x = y, uv = uv2, f_at = at, moved = true;
+            }
+          }
+        }
+      }
+      if (f > best) best = f, best_at = f_at;
+    }
+  }
+
+private:
+  double cut_at(const Eigen::Vector2d& xy) const {
+    const int x = static_cast<int>(std::floor((xy.x() - blo_.x()) / bsize_));
+    const int y = static_cast<int>(std::floor((xy.y() - blo_.y()) / bsize_));
+    if (x < 0 || y < 0 || x >= bx_ || y >= by_) return kInf;
+    double z = kInf;
+    for (int s : buckets_[static_cast<std::size_t>(y) * bx_ + x]) {
+      z = std::min(z, swept_ball_bottom(segs_[static_cast<std::size_t>(s)].a, segs_[static_cast<std::size_t>(s)].b, R_, xy));
+    }
+    return z;
+  }
+
+  // Signed excess at xy (sign = +1: scallop, -1: gouge), -inf where undefined.
+  double value_at(const Eigen::Vector2d& xy, Eigen::Vector2d& uv, double sign, Eigen::Vector3d& at) const {
+    const Eigen::Vector2d& lo = g_.lo;
+    const Eigen::Vector2d& hi = g_.hi;
+    if (xy.x() < lo.x() || xy.y() < lo.y() || xy.x() > hi.x() || xy.y() > hi.y()) return -kInf;  // the window
+    SurfaceInverter::Jacobian jac;
+    double z = 0, nz = 0;
+    Eigen::Vector2d trial = uv;
+    if (!inv_.solve(xy, trial, jac, z, &nz)) return -kInf;
+    if (!surface_.boundary_uv.empty() && !inside_polygon(surface_.boundary_uv, trial)) return -kInf;
+    const double c = cut_at(xy);
+    if (!std::isfinite(c)) return -kInf;
+    uv = trial;
+    at = {xy.x(), xy.y(), z};
+    return sign * ((c - z) * nz - o_.stock_mm);
+  }
+
+  const BSplineSurface& surface_;
+  const SurfaceInverter& inv_;
+  const std::vector<Segment>& segs_;
+  const Grid& g_;
+  const ZmapOptions& o_;
+  double R_, bsize_;
+  int bx_ = 1, by_ = 1;
+  Eigen::Vector2d blo_;
+  std::vector<std::vector<int>> buckets_;
+};
+
 }  // namespace
 
 double swept_ball_bottom(const Eigen::Vector3d& A, const Eigen::Vector3d& B, double R, const Eigen::Vector2d& xy) {
@@ -247,253 +567,23 @@ ZmapResult simulate_zmap(const BSplineSurface& surface, const ClData& cl, const 
   if (!(o.cell_mm > 0) || !std::isfinite(o.cell_mm)) throw UsageError("z-map cell must be > 0");
   if (!(o.tool_radius_mm > 0)) throw UsageError("z-map tool radius must be > 0");
   const auto t_start = std::chrono::steady_clock::now();
-  const double R = o.tool_radius_mm;
   const int threads = geometry::thread_count(o.threads);
   const SurfaceInverter inv(surface);
-  Eigen::Vector2d lo = inv.lo(), hi = inv.hi();
-  if (o.window_min) lo = lo.cwiseMax(*o.window_min);
-  if (o.window_max) hi = hi.cwiseMin(*o.window_max);
-  if (!(hi.x() >= lo.x() && hi.y() >= lo.y())) throw GeometryError("the z-map window does not overlap the surface");
-  const long nx = static_cast<long>(std::floor((hi.x() - lo.x()) / o.cell_mm)) + 1;
-  const long ny = static_cast<long>(std::floor((hi.y() - lo.y()) / o.cell_mm)) + 1;
-  if (static_cast<double>(nx) * static_cast<double>(ny) > 1e8) {
-    throw GeometryError("the z-map would have " + std::to_string(nx) + " x " + std::to_string(ny) +
-                        " nodes; use a larger cell or a window");
-  }
-  const std::size_t N = static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny);
-  const auto node_xy = [&](long i, long j) { return Eigen::Vector2d(lo.x() + i * o.cell_mm, lo.y() + j * o.cell_mm); };
-
-  // The surface's height under every node, and n_z = 1 / sqrt(1 + z_x^2 + z_y^2) from central
-  // differences of those heights (one-sided at the edges; error O(cell^2 z''')).
-  std::vector<double> zs(N, kInf);
-  std::vector<float> nzs(N, 0.0f);
-  std::vector<Eigen::Vector2d> uvs(N);
-  geometry::parallel_for(static_cast<std::size_t>(ny), threads, [&](std::size_t jj) {
-    const long j = static_cast<long>(jj);
-    SurfaceInverter::Jacobian jac;
-    bool have_guess = false;
-    Eigen::Vector2d uv = Eigen::Vector2d::Zero();
-    for (long i = 0; i < nx; ++i) {
-      const Eigen::Vector2d xy = node_xy(i, j);
-      if (!have_guess) {
-        if (!inv.nearest_uv(xy, uv)) continue;
-        jac.valid = false;
-      }
-      double z = 0;
-      Eigen::Vector2d trial = uv;
-      if (inv.solve(xy, trial, jac, z)) {
-        const std::size_t k = static_cast<std::size_t>(j) * nx + i;
-        zs[k] = z;
-        uvs[k] = trial;
-        uv = trial;
-        have_guess = true;
-      } else {
-        have_guess = false;
-      }
-    }
-  });
-
-  geometry::parallel_for(static_cast<std::size_t>(ny), threads, [&](std::size_t jj) {
-    const long j = static_cast<long>(jj);
-    const auto z_at = [&](long i, long jn) {
-      return i < 0 || jn < 0 || i >= nx || jn >= ny ? kInf : zs[static_cast<std::size_t>(jn) * nx + i];
-    };
-    const auto slope = [&](double zm, double z0, double zp) {
-      if (std::isfinite(zm) && std::isfinite(zp)) return (zp - zm) / (2 * o.cell_mm);
-      if (std::isfinite(zp)) return (zp - z0) / o.cell_mm;
-      if (std::isfinite(zm)) return (z0 - zm) / o.cell_mm;
-      return 0.0;
-    };
-    for (long i = 0; i < nx; ++i) {
-      const std::size_t k = static_cast<std::size_t>(j) * nx + i;
-      const double z0 = zs[k];
-      if (!std::isfinite(z0)) continue;
-      const double zx = slope(z_at(i - 1, j), z0, z_at(i + 1, j)), zy = slope(z_at(i, j - 1), z0, z_at(i, j + 1));
-      nzs[k] = static_cast<float>(1.0 / std::sqrt(1 + zx * zx + zy * zy));
-    }
-  });
-  if (!surface.boundary_uv.empty()) {
-    for (std::size_t k = 0; k < N; ++k) {
-      if (std::isfinite(zs[k]) && !inside_polygon(surface.boundary_uv, uvs[k])) zs[k] = kInf;
-    }
-  }
-
-  // Sweep the ball along every move (centres = tips + R z).
-  std::vector<Segment> segs;
-  for (std::size_t k = 1; k < cl.moves.size(); ++k) {
-    const Eigen::Vector3d up(0, 0, R);
-    segs.push_back({cl.moves[k - 1].tip_mm + up, cl.moves[k].tip_mm + up});
-  }
-  std::vector<double> zc(N, kInf);
-  constexpr long kRowsPerBlock = 8;
-  const std::size_t blocks = static_cast<std::size_t>((ny + kRowsPerBlock - 1) / kRowsPerBlock);
-  std::vector<std::vector<int>> block_segs(blocks);
-  for (std::size_t s = 0; s < segs.size(); ++s) {
-    const double y0 = std::min(segs[s].a.y(), segs[s].b.y()) - R, y1 = std::max(segs[s].a.y(), segs[s].b.y()) + R;
-    const long j0 = std::max(0L, static_cast<long>(std::ceil((y0 - lo.y()) / o.cell_mm)));
-    const long j1 = std::min(ny - 1, static_cast<long>(std::floor((y1 - lo.y()) / o.cell_mm)));
-    for (long b = j0 / kRowsPerBlock; j0 <= j1 && b <= j1 / kRowsPerBlock; ++b) block_segs[static_cast<std::size_t>(b)].push_back(static_cast<int>(s));
-  }
-  geometry::parallel_for(blocks, threads, [&](std::size_t b) {
-    const long jb0 = static_cast<long>(b) * kRowsPerBlock, jb1 = std::min(ny - 1, jb0 + kRowsPerBlock - 1);
-    const double R2 = R * R;
-    for (int s : block_segs[b]) {
-      const Segment& sg = segs[static_cast<std::size_t>(s)];
-      // swept_ball_bottom with the segment's invariants hoisted and sigma0, perp stepped along the
-      // row; a node whose cut is already below the lowest this move can reach there is skipped.
-      const Eigen::Vector2d d = sg.b.head<2>() - sg.a.head<2>();
-      const double l = d.norm();
-      const bool point_like = l < 1e-12;
-      const Eigen::Vector2d e = point_like ? Eigen::Vector2d(1, 0) : Eigen::Vector2d(d / l);
-      const double m = point_like ? 0.0 : (sg.b.z() - sg.a.z()) / l;
-      const double k = std::sqrt(1 + m * m);
-      const double zmin = std::min(sg.a.z(), sg.b.z());
-      for (long j = jb0; j <= jb1; ++j) {
-        const double y = lo.y() + j * o.cell_mm;
-        double x0, x1;
-        if (!stadium_row(sg.a.head<2>(), sg.b.head<2>(), R, y, x0, x1)) continue;
-        const long i0 = std::max(0L, static_cast<long>(std::ceil((x0 - lo.x()) / o.cell_mm)));
-        const long i1 = std::min(nx - 1, static_cast<long>(std::floor((x1 - lo.x()) / o.cell_mm)));
-        double* row = zc.data() + static_cast<std::size_t>(j) * nx;
-        if (point_like) {
-          for (long i = i0; i <= i1; ++i) {
-            const double z = swept_ball_bottom(sg.a, sg.b, R, {lo.x() + i * o.cell_mm, y});
-            if (z < row[i]) row[i] = z;
-          }
-          continue;
-        }
-        const double wy = y - sg.a.y();
-        for (long i = i0; i <= i1; ++i) {
-          const double wx = lo.x() + i * o.cell_mm - sg.a.x();
-          const double perp = e.x() * wy - e.y() * wx;
-          const double r2 = R2 - perp * perp;
-          if (!(r2 > 0)) continue;
-          const double dz = zmin - row[i];
-          if (dz >= 0 && dz * dz >= r2) continue;
-          const double sigma0 = wx * e.x() + wy * e.y();
-          const double r = std::sqrt(r2);
-          const double s_star = sigma0 - m * r / k;
-          double z;
-          if (s_star >= 0 && s_star <= l) {
-            z = sg.a.z() + m * sigma0 - r * k;
-          } else {
-            const double sc = s_star < 0 ? 0.0 : l;
-            const double ds = sc - sigma0;
-            const double q = r2 - ds * ds;
-            if (!(q > 0)) continue;
-            z = sg.a.z() + m * sc - std::sqrt(q);
-          }
-          if (z < row[i]) row[i] = z;
-        }
-      }
-    }
-  });
-
-  ZmapResult res;
-  res.cell_mm = o.cell_mm;
+  const Grid grid = make_grid(inv, o);
+  const SurfaceSamples samples = sample_surface(surface, inv, grid, threads);
+  // Sweep the ball along every move.
+  const std::vector<Segment> segs = ball_segments(cl, o.tool_radius_mm);
+  const std::vector<double> zc = cut_heights(segs, grid, o.tool_radius_mm, threads);
   std::vector<std::pair<double, std::size_t>> excess;  // (normal excess, node)
-  for (std::size_t k = 0; k < N; ++k) {
-    if (!std::isfinite(zs[k])) continue;
-    ++res.nodes;
-    if (!std::isfinite(zc[k])) {
-      ++res.unmachined;
-      continue;
-    }
-    const double dz = zc[k] - zs[k];
-    const double e = dz * nzs[k] - o.stock_mm;
-    res.max_excess_z_mm = std::max(res.max_excess_z_mm, dz);
-    excess.push_back({e, k});
-    if (e > res.grid_max_scallop_mm) res.grid_max_scallop_mm = e, res.max_scallop_at = {node_xy(static_cast<long>(k % nx), static_cast<long>(k / nx)).x(), node_xy(static_cast<long>(k % nx), static_cast<long>(k / nx)).y(), zs[k]};
-    if (-e > res.grid_max_gouge_mm) res.grid_max_gouge_mm = -e, res.max_gouge_at = {node_xy(static_cast<long>(k % nx), static_cast<long>(k / nx)).x(), node_xy(static_cast<long>(k % nx), static_cast<long>(k / nx)).y(), zs[k]};
-  }
-  res.max_scallop_mm = res.grid_max_scallop_mm;
-  res.max_gouge_mm = res.grid_max_gouge_mm;
-
-  // Refinement between nodes: the cut height at any (x, y) from the moves near it (buckets of
-  // side R), the surface's by Newton from the node's (u, v); a compass search from each of the
-  // worst nodes (kept at least 4 cells apart) climbs to the local extreme.
+  ZmapResult res = compare_at_nodes(samples, zc, grid, o.stock_mm, excess);
   if (!excess.empty() && o.refine_candidates > 0) {
-    const double bsize = R;
-    const int bx = std::max(1, static_cast<int>(std::ceil((hi.x() - lo.x() + 2 * R) / bsize)));
-    const int by = std::max(1, static_cast<int>(std::ceil((hi.y() - lo.y() + 2 * R) / bsize)));
-    const Eigen::Vector2d blo = lo - Eigen::Vector2d(R, R);
-    std::vector<std::vector<int>> buckets(static_cast<std::size_t>(bx) * by);
-    for (std::size_t s = 0; s < segs.size(); ++s) {
-      const Eigen::Vector2d mn = segs[s].a.head<2>().cwiseMin(segs[s].b.head<2>()) - Eigen::Vector2d(R, R);
-      const Eigen::Vector2d mx = segs[s].a.head<2>().cwiseMax(segs[s].b.head<2>()) + Eigen::Vector2d(R, R);
-      const int x0 = std::max(0, static_cast<int>(std::floor((mn.x() - blo.x()) / bsize)));
-      const int x1 = std::min(bx - 1, static_cast<int>(std::floor((mx.x() - blo.x()) / bsize)));
-      const int y0 = std::max(0, static_cast<int>(std::floor((mn.y() - blo.y()) / bsize)));
-      const int y1 = std::min(by - 1, static_cast<int>(std::floor((mx.y() - blo.y()) / bsize)));
-      for (int y = y0; y <= y1; ++y) {
-        for (int x = x0; x <= x1; ++x) buckets[static_cast<std::size_t>(y) * bx + x].push_back(static_cast<int>(s));
-      }
-    }
-    const auto cut_at = [&](const Eigen::Vector2d& xy) {
-      const int x = static_cast<int>(std::floor((xy.x() - blo.x()) / bsize));
-      const int y = static_cast<int>(std::floor((xy.y() - blo.y()) / bsize));
-      if (x < 0 || y < 0 || x >= bx || y >= by) return kInf;
-      double z = kInf;
-      for (int s : buckets[static_cast<std::size_t>(y) * bx + x]) {
-        z = std::min(z, swept_ball_bottom(segs[static_cast<std::size_t>(s)].a, segs[static_cast<std::size_t>(s)].b, R, xy));
-      }
-      return z;
-    };
-    // Signed excess at xy (sign = +1: scallop, -1: gouge), -inf where undefined.
-    const auto value_at = [&](const Eigen::Vector2d& xy, Eigen::Vector2d& uv, double sign, Eigen::Vector3d& at) {
-      if (xy.x() < lo.x() || xy.y() < lo.y() || xy.x() > hi.x() || xy.y() > hi.y()) return -kInf;  // the window
-      SurfaceInverter::Jacobian jac;
-      double z = 0, nz = 0;
-      Eigen::Vector2d trial = uv;
-      if (!inv.solve(xy, trial, jac, z, &nz)) return -kInf;
-      if (!surface.boundary_uv.empty() && !inside_polygon(surface.boundary_uv, trial)) return -kInf;
-      const double c = cut_at(xy);
-      if (!std::isfinite(c)) return -kInf;
-      uv = trial;
-      at = {xy.x(), xy.y(), z};
-      return sign * ((c - z) * nz - o.stock_mm);
-    };
-    const auto refine = [&](double sign, double& best, Eigen::Vector3d& best_at) {
-      const std::size_t K = static_cast<std::size_t>(o.refine_candidates);
-      const std::size_t pool = std::min(excess.size(), K * 200);
-      auto cmp = [&](const auto& a, const auto& b) { return sign * a.first > sign * b.first; };
-      std::partial_sort(excess.begin(), excess.begin() + static_cast<long>(pool), excess.end(), cmp);
-      std::vector<Eigen::Vector2d> picked;
-      const double apart2 = 16 * o.cell_mm * o.cell_mm;
-      for (std::size_t c = 0; c < pool && picked.size() < K; ++c) {
-        const std::size_t k = excess[c].second;
-        const Eigen::Vector2d xy = node_xy(static_cast<long>(k % nx), static_cast<long>(k / nx));
-        if (std::any_of(picked.begin(), picked.end(), [&](const Eigen::Vector2d& p) { return (p - xy).squaredNorm() < apart2; })) continue;
-        picked.push_back(xy);
-        Eigen::Vector2d uv = uvs[k];
-        Eigen::Vector3d at = Eigen::Vector3d::Zero();
-        Eigen::Vector2d x = xy;
-        double f = value_at(x, uv, sign, at);
-        if (!std::isfinite(f)) continue;
-        Eigen::Vector3d f_at = at;
-        for (double step = 0.5 * o.cell_mm; step > 1e-5; step *= 0.5) {
-          for (bool moved = true; moved;) {
-            moved = false;
-            for (int d = 0; d < 8; ++d) {
-              const double ang = d * 0.7853981633974483;
-              const Eigen::Vector2d y = x + step * Eigen::Vector2d(std::cos(ang), std::sin(ang));
-              Eigen::Vector2d uv2 = uv;
-              const double fy = value_at(y, uv2, sign, at);
-              if (fy > f) {
-                f = fy, x = y, uv = uv2, f_at = at, moved = true;
-              }
-            }
-          }
-        }
-        if (f > best) best = f, best_at = f_at;
-      }
-    };
+    const ExtremeSearch search(surface, inv, segs, grid, o);
     double best_s = res.max_scallop_mm;
-    refine(+1.0, best_s, res.max_scallop_at);
+    search.refine(+1.0, excess, samples.uv, best_s, res.max_scallop_at);
     res.max_scallop_mm = best_s;
     if (res.grid_max_gouge_mm > 0) {
       double best_g = res.max_gouge_mm;
-      refine(-1.0, best_g, res.max_gouge_at);
+      search.refine(-1.0, excess, samples.uv, best_g, res.max_gouge_at);
       res.max_gouge_mm = best_g;
     }
   }
