@@ -29,8 +29,20 @@ if out=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="nowhere/*.jpg" OUT=job1 2>&1);
 fi
 grep -q "PHOTOS: 'nowhere/\*.jpg' matches no file" <<<"$out" || fail "unexpected message: $out"
 
+# Photos named .JPG (as many cameras write them) work alike; two extensions in one PHOTOS stop make.
+mkdir -p upper && for f in "$demo"/part_0[0-2].jpg; do n=$(basename "$f" .jpg); ln -s "$f" "upper/$n.JPG"; done
+ln -s "$demo/part_03.jpg" upper/part_03.jpg
+jpg=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="upper/*.JPG" CALIB_PHOTOS="$demo/board_*.jpg" OUT=job3)
+n=$(grep -c "^/opt/pm/bin/detect --aruco .*upper/part_0[0-2]\.JPG -o job3/obs/part_0[0-2]\.csv" <<<"$jpg" || true)
+[ "$n" -eq 3 ] || fail "expected one detect per .JPG photo (3), got $n"
+grep -q "job3/feat/part_00.JPG.feat" <<<"$jpg" || fail "the .JPG photos' features are not matched"
+if out=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="upper/*" OUT=job3 2>&1); then
+  fail "photos of two extensions must stop make"
+fi
+grep -q "PHOTOS: one extension for all" <<<"$out" || fail "unexpected message: $out"
+
 # BIN: the build beside the Makefile (a copy of it with a build/bin/detect of its own).
 mkdir -p repo/build/bin && cp "$mk" repo/ && touch repo/build/bin/detect
 cmds=$(make -n -f repo/Makefile.example PHOTOS="$demo/part_00.jpg" CALIB_PHOTOS="$demo/board_00.jpg" CONTROL="$demo/control_points.csv" OUT=job2)
 grep -q "^repo/build/bin/detect " <<<"$cmds" || fail "BIN is not the build beside the Makefile: $(head -3 <<<"$cmds")"
-echo "makefile_test: globs quoted or not, FITSURF+= keeps PART_BOX, an unmatched glob, BIN beside the Makefile: ok"
+echo "makefile_test: globs quoted or not, FITSURF+= keeps PART_BOX, an unmatched glob, .JPG photos, one extension, BIN beside the Makefile: ok"
