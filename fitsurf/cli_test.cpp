@@ -112,6 +112,27 @@ TEST(FitsurfCli, QuietMeansNothingOnStderr) {
   EXPECT_NO_THROW(read_surface(in, "<stdout>"));
 }
 
+// A cloud oriented without any datum (its PLY says units arbitrary): fitted, with a warning that
+// nothing is in mm, and the report says the unit; a cloud in mm gives no such warning.
+TEST(FitsurfCli, WarnsThatAnArbitraryScaleIsNotMm) {
+  TempDir dir;
+  const auto p = [&](const char* name) { return (dir.path() / name).string(); };
+  PointCloud in;
+  in.points_mm = fitsurf::test::sample(fitsurf::test::shape("dome"), 2000, 0.01, 41);
+  for (const char* units : {"arbitrary", "mm"}) {
+    in.units = units;
+    {
+      std::ofstream f(p("in.ply"), std::ios::binary);
+      write_ply(f, in, PlyEncoding::BinaryLittleEndian);
+    }
+    const ToolResult r = run_tool("fitsurf", {p("in.ply"), "-o", p("s.surf"), "--report", p("r.json")});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const bool warned = r.err.find("warning: the point cloud's scale is arbitrary, not mm") != std::string::npos;
+    EXPECT_EQ(warned, in.units == "arbitrary") << r.err;
+    EXPECT_NE(photomill::test::read_file(dir.path() / "r.json").find("\"units\":\"" + in.units + "\""), std::string::npos);
+  }
+}
+
 TEST(FitsurfCli, WritesEveryOutput) {
   TempDir dir;
   const auto p = [&](const char* name) { return (dir.path() / name).string(); };

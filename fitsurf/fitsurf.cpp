@@ -250,6 +250,7 @@ Result fit_point_cloud(const PointCloud& cloud, const Options& options, const st
   const auto t0 = std::chrono::steady_clock::now();
   Result r;
   r.input_points = cloud.points_mm.size();
+  r.units = cloud.units;
   if (cloud.points_mm.empty()) throw GeometryError("no points to fit: the input holds none");
   std::optional<log::Step> step(std::in_place, "selecting the part's points among " + std::to_string(cloud.points_mm.size()));
   r.selection = select_part(cloud.points_mm, options.select);

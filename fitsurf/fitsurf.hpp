@@ -80,6 +80,7 @@ ResidualStats residual_stats(const std::vector<double>& d, const FitResult& fit)
 
 struct Result {
   std::size_t input_points = 0;
+  std::string units = "mm";  // the cloud's (PointCloud::units): "arbitrary" warns that nothing is in mm
   Selection selection;
   std::optional<ToleranceSearch> tolerance;
   std::optional<PrefitSummary> prefit;  // set when the kernel prefit was used

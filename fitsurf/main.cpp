@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
         if (cloud.points_mm.empty()) throw InputError(tool::source_name(cli.input), 0, "no points: nothing to fit");
         const fitsurf::Result result = fitsurf::fit_point_cloud(cloud, options, tool::source_name(cli.input));
         for (const auto& line : fitsurf::summary(result, options)) log::info(line);
+        if (result.units != "mm") log::warn(fitsurf::units_warning(result));
         fitsurf::write_outputs(cli, options, cloud, result);
       });
 }

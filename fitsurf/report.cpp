@@ -50,6 +50,7 @@ void write_report(std::ostream& out, const Result& r, const Options& o, const st
   j.field("tool", "fitsurf");
   j.field("input", source);
   j.field("input_points", r.input_points);
+  j.field("units", r.units);
   j.key("selection").begin_object();
   j.field("fitted_points", r.selection.kept.size());
   j.field("dropped_box", r.selection.dropped_box);
@@ -188,6 +189,12 @@ void write_report(std::ostream& out, const Result& r, const Options& o, const st
   j.field("seconds", r.seconds);
   j.end_object();
   out << "\n";
+}
+
+std::string units_warning(const Result& r) {
+  return "the point cloud's scale is " + r.units +
+         ", not mm (oriented without control points, scale bars or known poses): the surface, its mm figures "
+         "and any tool path made from it are in that unit; give triangulate a datum before machining";
 }
 
 std::vector<std::string> summary(const Result& r, const Options& o) {

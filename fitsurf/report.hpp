@@ -14,6 +14,8 @@ void write_report(std::ostream& out, const Result& result, const Options& option
 
 // Two or three lines for stderr (log::info adds the "fitsurf: " prefix).
 std::vector<std::string> summary(const Result& result, const Options& options);
+// For a cloud whose units are not mm (Result::units): what that means for the surface.
+std::string units_warning(const Result& result);
 
 std::string to_string(KnotPlacement k);
 std::string to_string(PlaneChoice p);

@@ -38,6 +38,9 @@ PointProperty& PointCloud::add_property(const std::string& name, PlyScalar type)
 
 namespace {
 
+// The header comment that carries PointCloud::units.
+constexpr const char* kUnitsComment = "photomill point cloud, units ";
+
 // --- PLY scalar types -----------------------------------------------------------------------
 struct TypeName {
   PlyScalar type;
@@ -109,6 +112,7 @@ struct Element {
 struct Header {
   Format format = Format::Ascii;
   std::size_t lines = 0;  // header lines, including "end_header"
+  std::string units = "mm";
   std::vector<Element> elements;
 };
 
@@ -131,6 +135,12 @@ Header read_header(std::istream& in, const std::string& source, const PointCloud
       continue;
     }
     if (f.empty()) continue;
+    if (f[0] == "comment" && line->rfind(std::string("comment ") + kUnitsComment, 0) == 0) {
+      const std::string rest(line->substr(8 + std::string_view(kUnitsComment).size()));
+      h.units = rest.substr(0, rest.find_first_of(": \t\r"));
+      if (h.units.empty()) lines.fail("PLY units comment names no unit");
+      continue;
+    }
     if (f[0] == "comment" || f[0] == "obj_info") continue;
     if (f[0] == "end_header") {
       h.lines = lines.line_number();
@@ -227,6 +237,7 @@ PointCloud read_ply(std::istream& in, const std::string& source, PointCloudLimit
   const Element& vertex = *vertex_it;
 
   PointCloud cloud;
+  cloud.units = h.units;
   int ix = -1, iy = -1, iz = -1;
   std::vector<int> column(vertex.properties.size(), -1);  // property -> cloud.properties index
   for (std::size_t k = 0; k < vertex.properties.size(); ++k) {
@@ -396,7 +407,12 @@ void write_ply(std::ostream& out, const PointCloud& cloud, PlyEncoding encoding,
   }
   std::string text = "ply\nformat ";
   text += encoding == PlyEncoding::Ascii ? "ascii" : "binary_little_endian";
-  text += " 1.0\ncomment photomill point cloud, units mm\n";
+  if (cloud.units.empty() || cloud.units.find_first_of(": \t\r\n") != std::string::npos) {
+    throw std::invalid_argument("invalid point cloud units '" + cloud.units + "'");
+  }
+  text += " 1.0\ncomment " + std::string(kUnitsComment) + cloud.units +
+          (cloud.units == "arbitrary" ? ": not mm, no datum (control points, scale bars or known poses) fixed the scale" : "") +
+          "\n";
   if (!comment.empty() && comment.find('\n') == std::string::npos) text += "comment " + comment + "\n";
   text += "element vertex " + std::to_string(n) + "\n";
   const char* xyz_type = info(cloud.xyz_type).canonical;

@@ -30,6 +30,11 @@ struct PointCloud {
   std::vector<Eigen::Vector3d> points_mm;     // world frame, mm
   std::vector<PointProperty> properties;      // in file order; each has points_mm.size() values
   PlyScalar xyz_type = PlyScalar::Float64;    // type of x, y, z written to PLY
+  // The unit of points_mm (and of every *_mm property): "mm", or "arbitrary" for a reconstruction
+  // without any datum (no control points, scale bars or known poses: its first baseline is 1).
+  // PLY keeps it in the header line "comment photomill point cloud, units ..."; a file without
+  // that line is in mm.
+  std::string units = "mm";
 
   // The property `name`, else "scalar_" + name (the form CloudCompare loads as a scalar field,
   // which triangulate writes: find("sigma_mm") finds scalar_sigma_mm in new files and sigma_mm

@@ -55,6 +55,25 @@ TEST_P(PlyRoundTrip, PreservesPointsAndEveryPropertyType) {
   EXPECT_EQ(read_ply(s, "mem"), c);
 }
 
+TEST_P(PlyRoundTrip, ArbitraryUnitsAreSaidAndReadBack) {
+  PointCloud c = sample_cloud();
+  c.units = "arbitrary";
+  std::stringstream s;
+  write_ply(s, c, GetParam());
+  EXPECT_NE(s.str().find("comment photomill point cloud, units arbitrary: not mm"), std::string::npos) << s.str();
+  EXPECT_EQ(read_ply(s, "mem"), c);
+  // A PLY of another writer, or photomill's in mm, is in mm.
+  std::stringstream mm;
+  write_ply(mm, sample_cloud(), GetParam());
+  EXPECT_NE(mm.str().find("comment photomill point cloud, units mm\n"), std::string::npos);
+  EXPECT_EQ(read_ply(mm, "mem").units, "mm");
+  std::istringstream foreign("ply\nformat ascii 1.0\ncomment made elsewhere\nelement vertex 0\nproperty float x\n"
+                             "property float y\nproperty float z\nend_header\n");
+  EXPECT_EQ(read_ply(foreign, "mem").units, "mm");
+  c.units = "two words";
+  EXPECT_THROW(write_ply(s, c, GetParam()), std::invalid_argument);
+}
+
 TEST_P(PlyRoundTrip, Float32CoordinatesStayFloat32) {
   PointCloud c;
   c.xyz_type = PlyScalar::Float32;
@@ -125,6 +144,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadPly{"uchar_range", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nend_header\n1 2 3 256\n", "does not fit type uchar"},
         BadPly{"binary_truncated", "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty double x\nproperty double y\nproperty double z\nend_header\n" + std::string(30, '\0'), "found 1"},
         BadPly{"version", "ply\nformat ascii 2.0\nend_header\n", "unsupported PLY version"},
+        BadPly{"units_empty", "ply\nformat ascii 1.0\ncomment photomill point cloud, units \nelement vertex 0\nend_header\n",
+               "c.ply:3: PLY units comment names no unit"},
         BadPly{"negative_count", "ply\nformat ascii 1.0\nelement vertex -5\nend_header\n", "element count is not a non-negative integer"}),
     [](const auto& info) { return std::string(info.param.name); });
 

@@ -183,6 +183,26 @@ TEST(TriangulateCli, WritesAPreview) {
   }
 }
 
+// Without any datum (--arbitrary-scale) the cloud says its unit is no mm: the PLY header, the
+// report's datum and warning; with control points the header says mm.
+TEST(TriangulateCli, AnArbitraryScaleIsSaid) {
+  SceneFiles f;
+  const auto r = run_tool("triangulate", {f.path("tracks.csv"), "-c", f.path("camera.yaml"), "--arbitrary-scale",
+                                          "--ply-encoding", "ascii", "--report", f.path("report.json"), "-o", f.path("cloud.ply")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("the scale is arbitrary"), std::string::npos) << r.err;
+  const std::string text = f.text("cloud.ply");
+  EXPECT_NE(text.find("comment photomill point cloud, units arbitrary: not mm"), std::string::npos) << text.substr(0, 300);
+  std::istringstream ply(text);
+  EXPECT_EQ(read_ply(ply, "cloud.ply").units, "arbitrary");
+  EXPECT_NE(f.text("report.json").find("\"datum\":{\"type\":\"arbitrary_scale\""), std::string::npos);
+  const auto mm = run_tool("triangulate", {f.path("tracks.csv"), "-c", f.path("camera.yaml"), "--control-points",
+                                           f.path("control.csv"), "-o", f.path("mm.ply")});
+  ASSERT_EQ(mm.exit_code, 0) << mm.err;
+  std::istringstream mm_ply(f.text("mm.ply"));
+  EXPECT_EQ(read_ply(mm_ply, "mm.ply").units, "mm");
+}
+
 TEST(TriangulateCli, WorksAsAFilter) {
   SceneFiles f;
   const auto r = run_tool("triangulate", {"-", "-c", f.path("camera.yaml"), "--scale-bars", f.path("bars.csv"),

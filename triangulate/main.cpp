@@ -28,7 +28,7 @@ int main(int argc, char** argv) {
         tool::OutputFile cloud(cli.output);
         write_ply(cloud.stream(), triangulate::make_point_cloud(result),
                   cli.ply_encoding == "ascii" ? PlyEncoding::Ascii : PlyEncoding::BinaryLittleEndian,
-                  "photomill triangulate, units mm");
+                  "photomill triangulate");
         std::optional<tool::OutputFile> poses, report, camera, preview;
         if (!cli.poses.empty()) write_poses(poses.emplace(cli.poses).stream(), triangulate::registered_poses(result));
         if (!cli.report.empty()) triangulate::write_report_json(report.emplace(cli.report).stream(), result.report);

@@ -6,7 +6,6 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
-#include <random>
 #include <string>
 #include <vector>
 
@@ -41,16 +40,7 @@ public:
     if (kind == Scene::Markers) o.plate_marker_side_mm = 20;
     if (kind == Scene::Outliers) o.outlier_fraction = 0.02;
     test::SceneTruth t = test::make_scene(o);
-    if (kind == Scene::Sized) {
-      std::mt19937 rng(5);
-      std::normal_distribution<double> noise(0, 0.6);
-      std::size_t k = 0;
-      for (auto& ob : t.tracks) {
-        const bool big = (k++ % 3) == 0;
-        ob.size_px = big ? 12.0 : 1.0;
-        if (big) ob.u_px += noise(rng), ob.v_px += noise(rng);
-      }
-    }
+    if (kind == Scene::Sized) test::give_sizes_spoil_large(t.tracks);
     write("tracks.csv", [&](std::ostream& s) { write_tracks(s, t.tracks); });
     write("camera.yaml", [&](std::ostream& s) { write_camera_yaml(s, t.camera); });
     write("control.csv", [&](std::ostream& s) { write_control_points(s, t.plate_points); });

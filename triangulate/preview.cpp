@@ -86,7 +86,8 @@ struct Panel {
   cv::Size size;
   cv::Rect area;
   Eigen::Vector2d centre = Eigen::Vector2d::Zero();  // screen coordinates (r, u) at the area's centre
-  double scale = 1;                                  // px per mm
+  double scale = 1;                                  // px per mm (per unit)
+  std::string unit = "mm";                           // of the axes and the scale bar
 
   cv::Point2d px(const Eigen::Vector3d& p) const {
     return {area.x + area.width / 2.0 + (p.dot(view.r) - centre.x()) * scale,
@@ -107,7 +108,7 @@ struct Panel {
     a.plot = area;
     a.x0 = centre.x() - area.width / 2.0 / scale, a.x1 = centre.x() + area.width / 2.0 / scale;
     a.y0 = centre.y() - area.height / 2.0 / scale, a.y1 = centre.y() + area.height / 2.0 / scale;
-    a.x_label = "x mm", a.y_label = "y mm";
+    a.x_label = "x " + unit, a.y_label = "y " + unit;
     return a;
   }
 };
@@ -200,7 +201,7 @@ std::size_t draw_panel(cv::Mat& img, const Panel& p, const std::vector<Eigen::Ve
     const cv::Point2d n = std::hypot(d.x, d.y) > 4 ? d * (1 / std::hypot(d.x, d.y)) : cv::Point2d(0.7, 0.7);
     text(img, style.first, tip + cv::Point(cvRound(n.x * 10) - 4, cvRound(n.y * 10) + 4), 0.45, style.second);
   }
-  plot::draw_scale_bar(img, cv::Point(img.cols - 20, img.rows - 22), p.scale, img.cols / 5, "mm");
+  plot::draw_scale_bar(img, cv::Point(img.cols - 20, img.rows - 22), p.scale, img.cols / 5, p.unit);
   return outside;
 }
 
@@ -224,6 +225,7 @@ std::vector<std::uint8_t> render_preview_png(const PointCloud& cloud, const std:
   }
   if (points.empty()) throw GeometryError("nothing to preview: the point cloud is empty");
   const std::size_t n = points.size();
+  const std::string unit = cloud.units == "mm" ? "mm" : "units";
 
   // Robust box of the points: per axis from the percentile to its complement.
   Eigen::Vector3d lo, hi;
@@ -309,14 +311,15 @@ std::vector<std::uint8_t> render_preview_png(const PointCloud& cloud, const std:
     cv::Mat roi = img(cv::Rect(k * panel_w, 0, panel_w, panel_h));
     // The oblique view shows the whole scene, the top view the points in detail.
     // (The cameras are drawn in the oblique view only: the top view is framed on the points.)
-    const Panel panel = frame_panel(views[k], roi.size(), k == 0 ? framing : points_box, k == 1);
+    Panel panel = frame_panel(views[k], roi.size(), k == 0 ? framing : points_box, k == 1);
+    panel.unit = unit;
     cut_cameras += draw_panel(roi, panel, points, colours, control, radius, k == 0 ? frusta : std::vector<Frustum>{}, k == 1);
   }
 
   // Colour bar.
   const int bx = 2 * panel_w + 20, by0 = 60, by1 = panel_h - 50, bw = 22;
   text(img, by_rms ? "reproj. RMS" : "sigma", cv::Point(bx - 8, 24), 0.45);
-  text(img, by_rms ? "px" : "mm", cv::Point(bx - 8, 44), 0.45);
+  text(img, by_rms ? "px" : unit, cv::Point(bx - 8, 44), 0.45);
   for (int y = by0; y <= by1; ++y) {
     const double t = static_cast<double>(by1 - y) / (by1 - by0);
     const auto c = lut[static_cast<std::size_t>(std::lround(255 * t))];
@@ -339,7 +342,8 @@ std::vector<std::uint8_t> render_preview_png(const PointCloud& cloud, const std:
      << " cameras (frusta in the oblique view: apex at the centre, thick orange edge = top of the image)";
   if (far_cameras) l1 << "; " << far_cameras << " cameras far from the scene not drawn";
   if (cut_cameras) l1 << "; " << cut_cameras << " cameras across the view's edge not drawn";
-  l2 << "colour: " << (by_rms ? "reprojection RMS per point, px" : "uncertainty sigma per point, mm") << ", scale 0 .. "
+  if (unit != "mm") l1 << "; ARBITRARY SCALE: no control points, scale bars or known poses, unit = first baseline";
+  l2 << "colour: " << (by_rms ? "reprojection RMS per point, px" : "uncertainty sigma per point, " + unit) << ", scale 0 .. "
      << format_value(vmax) << " (95th percentile " << format_value(top) << "); " << above
      << " points above it at the top colour";
   if (missing) l2 << ", " << missing << " without a value in grey";

@@ -6,7 +6,9 @@
 
 #include <gtest/gtest.h>
 
+#include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "formats/error.hpp"
 #include "triangulate/test_scene.hpp"
@@ -132,6 +134,23 @@ TEST(Preview, FramesTheSceneRobustly) {
   const int with_wild = coloured_in(decode(render_preview_png(wild, far, truth.camera)), panels);
   EXPECT_GT(with_wild, base * 8 / 10) << "coloured pixels " << with_wild << " against " << base;
   EXPECT_LT(with_wild, base * 12 / 10) << "coloured pixels " << with_wild << " against " << base;
+}
+
+// A cloud without a datum (units arbitrary): the legend says so and the axes, scale bar and
+// colour bar say "units", not mm; the points are drawn alike.
+TEST(Preview, SaysWhenTheScaleIsArbitrary) {
+  const test::SceneTruth truth = test::make_scene({});
+  PointCloud cloud = truth_cloud(truth);
+  const cv::Mat mm = decode(render_preview_png(cloud, truth.poses, truth.camera));
+  cloud.units = "arbitrary";
+  const cv::Mat arbitrary = decode(render_preview_png(cloud, truth.poses, truth.camera));
+  ASSERT_EQ(mm.size(), arbitrary.size());
+  cv::Mat diff;
+  cv::absdiff(mm, arbitrary, diff);
+  cv::cvtColor(diff, diff, cv::COLOR_BGR2GRAY);
+  const int legend_top = mm.rows - 48;  // the two lines of text under the panels
+  EXPECT_GT(cv::countNonZero(diff.rowRange(legend_top, mm.rows)), 200) << "the legend names the arbitrary scale";
+  EXPECT_GT(cv::countNonZero(diff.rowRange(0, legend_top)), 0) << "axes, scale bar and colour bar in units";
 }
 
 TEST(Preview, RefusesAnEmptyCloud) {

@@ -996,6 +996,8 @@ PointCloud make_point_cloud(const Reconstruction& r) {
                       {"scalar_reproj_rms_px", PlyScalar::Float32, rms},
                       {"scalar_sigma_mm", PlyScalar::Float64, sigma},
                       {"scalar_control", PlyScalar::UInt8, control}};
+  // Without any datum the unit is the first baseline, not mm: the PLY header says so.
+  if (r.report.datum == "arbitrary_scale") cloud.units = "arbitrary";
   return cloud;
 }
 

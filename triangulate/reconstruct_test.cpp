@@ -186,17 +186,7 @@ TEST(Reconstruct, WeightingBySizeHelpsWhenNoiseGrowsWithSize) {
   const SceneTruth truth = test::make_scene({});
   ReconstructInput in = input_of(truth);
   in.control_points = truth.plate_points;
-  std::mt19937 rng(5);
-  std::normal_distribution<double> n(0, 0.6);
-  std::size_t k = 0;
-  for (auto& t : in.tracks) {
-    const bool big = (k++ % 3) == 0;
-    t.size_px = big ? 12.0 : 1.0;
-    if (big) {
-      t.u_px += n(rng);
-      t.v_px += n(rng);
-    }
-  }
+  test::give_sizes_spoil_large(in.tracks);
   ReconstructOptions weighted, plain;
   weighted.coded_id_limit = plain.coded_id_limit = 0;  // all one class: the size alone tells them apart
   plain.weight_by_feature_size = false;

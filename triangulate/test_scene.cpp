@@ -206,4 +206,18 @@ Accuracy evaluate(const Reconstruction& r, const SceneTruth& truth, bool similar
   return acc;
 }
 
+void give_sizes_spoil_large(std::vector<TrackObservation>& tracks) {
+  std::mt19937 rng(5);
+  std::normal_distribution<double> n(0, 0.6);
+  std::size_t k = 0;
+  for (auto& t : tracks) {
+    const bool big = (k++ % 3) == 0;
+    t.size_px = big ? 12.0 : 1.0;
+    if (big) {
+      t.u_px += n(rng);
+      t.v_px += n(rng);
+    }
+  }
+}
+
 }  // namespace photomill::triangulate::test

@@ -53,6 +53,10 @@ struct SceneTruth {
 
 SceneTruth make_scene(const SceneOptions& options);
 
+// Feature sizes that tell good observations from bad: every third observation becomes a 12 px
+// feature moved by N(0, 0.6 px) noise per axis (seeded), the rest 1 px features left exact.
+void give_sizes_spoil_large(std::vector<TrackObservation>& tracks);
+
 // How far a reconstruction is from the truth. With `similarity`, the reconstruction is first
 // mapped onto the truth by the similarity (Umeyama) that best fits all its points.
 struct Accuracy {
