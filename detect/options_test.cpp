@@ -183,6 +183,20 @@ INSTANTIATE_TEST_SUITE_P(
                      EXPECT_LT(r.features, plain_sift().features);
                    }},
         bad("sift_contrast_threshold_2", {"--sift-contrast-threshold", "2"}, "--sift-contrast-threshold"),
+        // --preset features: the four feature options of the measured chain, an option given wins.
+        OptionCase{"preset_features", {"--aruco", "DICT_4X4_100", "--features", "{feat}", "--preset", "features", part()}, 0, "",
+                   [](const Outcome& r) {
+                     const Outcome spelt = detect({"--aruco", "DICT_4X4_100", "--features", "{feat}", "--mask-markers",
+                                                   "--mask-clearance-per-size", "1", "--max-features", "20000",
+                                                   "--cap-cell-px", "64", part()});
+                     const Outcome plain = detect({"--aruco", "DICT_4X4_100", "--features", "{feat}", part()});
+                     EXPECT_EQ(r.features, spelt.features);
+                     EXPECT_NE(r.features, plain.features);
+                     const Outcome capped = detect({"--aruco", "DICT_4X4_100", "--features", "{feat}", "--preset", "features",
+                                                    "--max-features", "50", part()});
+                     EXPECT_EQ(capped.features, 50u);
+                   }},
+        bad("preset_unknown", {"--preset", "fast"}, "--preset"),
         OptionCase{"sift_octave_layers", sift({"--sift-octave-layers", "1"}), 0, "",
                    [](const Outcome& r) {
                      EXPECT_GT(r.features, 0u);

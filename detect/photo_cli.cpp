@@ -96,6 +96,13 @@ void add_photo_options(CLI::App& app, PhotoCli& c) {
       ->group(drawings)->capture_default_str()->check(CLI::IsMember({"jpg", "png"}));
   app.add_option("--draw-max-width-px", c.draw.max_width_px, "Drawings of wider photos are scaled down to this width (0: full size)")
       ->group(drawings)->capture_default_str()->check(CLI::NonNegativeNumber);
+  tool::add_presets(app, c.preset,
+                    {{"features",
+                      {{"--mask-markers", [&c] { c.options.mask_markers = true; }},
+                       {"--mask-clearance-per-size", [&c] { c.sift.mask_clearance_per_size = 1; }},
+                       {"--max-features", [&c] { c.sift.max_features = 20000; }},
+                       {"--cap-cell-px", [&c] { c.sift.cap_cell_px = 64; }}}}},
+                    "features: the settings the markers + natural features chain was measured with (docs/measurements/makefile.md); options given as well win");
 }
 
 bool photo_mode(const PhotoCli& c) { return !c.aruco.empty() || !c.aruco_dict_file.empty() || !c.features_dir.empty(); }

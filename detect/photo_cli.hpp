@@ -25,6 +25,7 @@ struct PhotoCli {
   PhotoOptions options;
   SiftOptions sift;
   DrawOptions draw;              // --draw DIR: pictures of what was found (every mode)
+  std::string preset;            // --preset (formats/tool.hpp)
 };
 
 // Adds the options (groups "Markers", "Features" and "Drawings"; the drawing options serve the

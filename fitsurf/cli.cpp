@@ -140,6 +140,11 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--cv-folds", c.cv_folds, "Cross-validation folds")
       ->capture_default_str()->check(CLI::Range(2, 1000))->group(tol);
   app.add_option("--max-poles", c.max_poles, "Largest net tried, poles per direction")->capture_default_str()->group(tol);
+  tool::add_presets(app, c.preset,
+                    {{"features",
+                      {{"--weight-by-sigma", [&c] { c.options.weight_by_sigma = true; }},
+                       {"--smoothing-order", [&f] { f.smoothing_order = 3; }}}}},
+                    "features: the settings the markers + natural features chain was measured with (docs/measurements/makefile.md); options given as well win");
 }
 
 std::pair<int, int> parse_net(const std::string& text) {

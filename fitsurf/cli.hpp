@@ -31,6 +31,7 @@ struct Cli {
   std::string tolerance_stat = "rms";
   int cv_folds = 4;
   int max_poles = 200;
+  std::string preset;            // --preset (formats/tool.hpp)
 };
 
 void add_options(CLI::App& app, Cli& cli);

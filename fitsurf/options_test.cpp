@@ -1,6 +1,7 @@
 // One case per fitsurf option not covered by the golden cases (issue 22): the option parses and
 // has its documented effect (docs/fitsurf.md, --help), read from the JSON report or the surface
 // text; a value out of its range exits 2 naming the option.
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <sstream>
@@ -78,6 +79,20 @@ const std::string& dome_on_walls() {
     }
     EXPECT_EQ(plate, kWallPlatePoints);
     return xyz_text(pts);
+  }();
+  return text;
+}
+
+// The dome as an ASCII PLY whose points carry sigma_mm (0.01 mm, as triangulate's would).
+const std::string& dome_with_sigma() {
+  static const std::string text = [] {
+    PointCloud c;
+    c.points_mm = fitsurf::test::sample(fitsurf::test::shape("dome"), 1500, 0.01, 41);
+    PointProperty& sigma = c.add_property("scalar_sigma_mm", PlyScalar::Float64);
+    std::fill(sigma.values.begin(), sigma.values.end(), 0.01);
+    std::ostringstream out;
+    write_ply(out, c, PlyEncoding::Ascii);
+    return out.str();
   }();
   return text;
 }
@@ -239,6 +254,17 @@ INSTANTIATE_TEST_SUITE_P(
                      EXPECT_NEAR(json_number(r.report, "rms_mm", "residuals"), 0.01, 0.003) << r.report;
                    }},
         bad("noise_mm_negative", {"--noise-mm=-1"}, "--noise-mm"),
+        // --preset features: weights by sigma (this cloud has none: refused naming it) and smoothing
+        // of order 3; an option given wins.
+        OptionCase{"preset_features", on({"--preset", "features"}), 1, "sigma_mm", nullptr},
+        OptionCase{"preset_features_order", on({"--preset", "features"}, dome_with_sigma), 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(json_raw(r.report, "weight_by_sigma"), "true");
+                     EXPECT_EQ(json_number(r.report, "smoothing_order"), 3);
+                     const Outcome second = fit({"--preset", "features", "--smoothing-order", "2"}, dome_with_sigma());
+                     EXPECT_EQ(json_number(second.report, "smoothing_order"), 2) << "the option given wins";
+                   }},
+        bad("preset_unknown", {"--preset", "fast"}, "--preset"),
         OptionCase{"no_correction", on({"--no-correction"}), 0, "",
                    [](const Outcome& r) {
                      EXPECT_EQ(json_raw(r.report, "parameter_correction", "fit"), "false");

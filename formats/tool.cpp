@@ -15,6 +15,7 @@
 #include <mutex>
 #include <vector>
 #include <sstream>
+#include <stdexcept>
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -215,6 +216,29 @@ int run(int argc, char** argv, const ToolSpec& spec,
 }
 
 void publish_committed() { rename_staged(); }
+
+void add_presets(CLI::App& app, std::string& chosen, const Presets& presets, const std::string& help) {
+  std::vector<std::string> names;
+  for (const auto& [name, values] : presets) {
+    names.push_back(name);
+    for (const PresetValue& v : values) {
+      try {
+        app.get_option(v.option);
+      } catch (const CLI::OptionNotFound&) {
+        throw std::logic_error("preset '" + name + "' sets " + v.option + ", which is no option");
+      }
+    }
+  }
+  app.add_option("--preset", chosen, help)->check(CLI::IsMember(names));
+  app.final_callback([&app, &chosen, presets] {
+    for (const auto& [name, values] : presets) {
+      if (name != chosen) continue;
+      for (const PresetValue& v : values) {
+        if (app.count(v.option) == 0) v.set();
+      }
+    }
+  });
+}
 
 std::string source_name(const std::string& path) { return path == "-" ? "<stdin>" : path; }
 

@@ -8,6 +8,8 @@
 #include <iosfwd>
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -28,6 +30,20 @@ struct ToolSpec {
 // (SIGHUP, SIGINT, SIGQUIT, SIGTERM, SIGPIPE, ...) that remove the temporary files first.
 int run(int argc, char** argv, const ToolSpec& spec,
         const std::function<void(CLI::App&)>& configure, const std::function<void()>& body);
+
+// A named preset: option values measured together (docs/measurements/makefile.md), each given
+// as the option's long name and what setting it does. `--preset NAME` applies the values of the
+// options the command line does not give: an option given explicitly wins, in any order.
+struct PresetValue {
+  std::string option;          // "--max-features"
+  std::function<void()> set;  // sets the option's variable to the preset's value
+};
+using Presets = std::vector<std::pair<std::string, std::vector<PresetValue>>>;  // name -> values
+
+// Adds `--preset NAME` (one of `presets`' names; `help` says what they are) to `app`, writing the
+// name to `chosen`; the values are applied once parsing is complete. Each option must exist in
+// `app` (checked here: a misspelt name is a programming error, std::logic_error).
+void add_presets(CLI::App& app, std::string& chosen, const Presets& presets, const std::string& help);
 
 // Renames the outputs committed so far in this run at once, for a run that hands its own outputs
 // to another program or reads them back (synth_accuracy writes a data set, then runs the stages

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <functional>
 #include <thread>
+#include <stdexcept>
 #include <vector>
 #include <sstream>
 
@@ -240,6 +241,53 @@ TEST(OpenInput, EndlessDevicesAreRefusedAtOnceAndPipesAreStreams) {
   std::thread writer([&] { std::ofstream(fifo) << "a,b\n1,2\n"; });
   EXPECT_EQ(read_all(fifo.string(), 100), "a,b\n1,2\n");
   writer.join();
+}
+
+// --preset: its values for the options not given; an option given wins, before or after it; a
+// name that is no preset is bad usage (exit 2); a preset naming no option is a programming error.
+struct Parsed {
+  int exit_code = -1;
+  int width = 10;
+  bool fast = false;
+};
+Parsed parse_with_presets(std::vector<std::string> args) {
+  Parsed p;
+  std::string chosen;
+  args.insert(args.begin(), "tool_test");
+  std::vector<char*> argv;
+  for (std::string& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  p.exit_code = run(static_cast<int>(args.size()), argv.data(), {"tool_test", "test", "tool_test"},
+                    [&](CLI::App& app) {
+                      app.add_option("--width", p.width);
+                      app.add_flag("--fast", p.fast);
+                      add_presets(app, chosen, {{"wide", {{"--width", [&] { p.width = 99; }}, {"--fast", [&] { p.fast = true; }}}}},
+                                  "wide: width 99, fast");
+                    },
+                    [] {});
+  return p;
+}
+
+TEST(Presets, SetWhatTheCommandLineDoesNotGive) {
+  const Parsed none = parse_with_presets({});
+  EXPECT_EQ(none.exit_code, 0);
+  EXPECT_EQ(none.width, 10);
+  EXPECT_FALSE(none.fast);
+  const Parsed wide = parse_with_presets({"--preset", "wide"});
+  EXPECT_EQ(wide.exit_code, 0);
+  EXPECT_EQ(wide.width, 99);
+  EXPECT_TRUE(wide.fast);
+  for (const auto& args : {std::vector<std::string>{"--preset", "wide", "--width", "5"},
+                           std::vector<std::string>{"--width", "5", "--preset", "wide"}}) {
+    const Parsed p = parse_with_presets(args);
+    EXPECT_EQ(p.exit_code, 0);
+    EXPECT_EQ(p.width, 5) << "the option given wins";
+    EXPECT_TRUE(p.fast);
+  }
+  EXPECT_EQ(parse_with_presets({"--preset", "narrow"}).exit_code, 2);
+  CLI::App app;
+  std::string chosen;
+  EXPECT_THROW(add_presets(app, chosen, {{"wide", {{"--no-such-option", [] {}}}}}, ""), std::logic_error);
 }
 
 }  // namespace

@@ -86,6 +86,11 @@ void add_options(CLI::App& app, Cli& c) {
       ->group(lsm)->capture_default_str()->check(CLI::Range(-1.0, 1.0));
   app.add_option("-j,--threads,--jobs", o.jobs, "Image pairs matched in parallel (0: all cores; --jobs: the old name)")
       ->capture_default_str()->check(CLI::Range(0, 1024));
+  tool::add_presets(app, c.preset,
+                    {{"features",
+                      {{"--flann-checks", [&o] { o.flann_checks = 16; }},
+                       {"--lsm-quadratic", [&c] { c.lsm.quadratic = true; }}}}},
+                    "features: the settings the markers + natural features chain was measured with (docs/measurements/makefile.md); options given as well win");
 }
 
 namespace {

@@ -22,6 +22,7 @@ struct Cli {
   LsmOptions lsm;
   std::string image_dir;            // where the images named in .feat files are (default: as named)
   MatchOptions options;
+  std::string preset;               // --preset (formats/tool.hpp)
 };
 
 void add_options(CLI::App& app, Cli& cli);

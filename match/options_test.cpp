@@ -317,6 +317,15 @@ INSTANTIATE_TEST_SUITE_P(
                      ASSERT_GT(lsm_kept(r), 0) << r.r.err;
                      EXPECT_NE(r.r.out, plain_features().r.out);
                    }},
+        // --preset features: --flann-checks 16 and --lsm-quadratic; an option given wins.
+        OptionCase{"preset_features", features({"--preset", "features"}), 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(r.r.out, match(features({"--flann-checks", "16", "--lsm-quadratic"})).r.out);
+                     EXPECT_NE(r.r.out, plain_features().r.out);
+                     EXPECT_EQ(match(features({"--flann-checks", "32", "--preset", "features"})).r.out,
+                               match(features({"--lsm-quadratic"})).r.out);
+                   }},
+        bad("preset_unknown", {"--preset", "fast"}, "--preset"),
         // The .feat files name the photos in the crops' folder: read from another folder, they are missing.
         OptionCase{"image_dir", features({"--image-dir", "no-such-folder"}), 1, "no-such-folder", nullptr},
         OptionCase{"image_dir_same", features({"--image-dir", "."}), 0, "",

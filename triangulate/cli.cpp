@@ -158,6 +158,12 @@ void add_options(CLI::App& app, Cli& c) {
       ->check(CLI::Range(5, 1000000))->capture_default_str()->group(geo);
   app.add_option("--initial-min-angle-deg", o.initial_min_angle_deg, "Median intersection angle of the initial pair")
       ->check(CLI::NonNegativeNumber)->capture_default_str()->group(geo);
+  tool::add_presets(app, c.preset,
+                    {{"features",
+                      {{"--refine-intrinsics", [&c] { c.refine_intrinsics = "all"; }},
+                       {"--outlier-rounds", [&o] { o.outliers.rounds = 2; }},
+                       {"--function-tolerance", [&o] { o.bundle.function_tolerance = 1e-6; }}}}},
+                    "features: the settings the markers + natural features chain was measured with (docs/measurements/makefile.md); options given as well win");
 }
 
 ReconstructOptions to_options(const Cli& c) {

@@ -33,6 +33,7 @@ struct Cli {
   std::optional<double> marker_side_mm;
   std::optional<double> observation_sigma_px;
   ReconstructOptions options;
+  std::string preset;             // --preset (formats/tool.hpp)
 };
 
 void add_options(CLI::App& app, Cli& cli);

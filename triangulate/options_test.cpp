@@ -234,6 +234,25 @@ INSTANTIATE_TEST_SUITE_P(
                          << r.report << plain().report;
                    }},
         bad("function_tolerance_zero", {"--function-tolerance", "0"}, "--function-tolerance"),
+        // --preset features: all intrinsics refined, 2 outlier rounds, function tolerance 1e-6.
+        OptionCase{"preset_features", Scene::Plain, {"--preset", "features"}, 0, "",
+                   [](const Outcome& r) {
+                     const Outcome spelt = triangulate(Scene::Plain, {"--refine-intrinsics", "all", "--outlier-rounds", "2",
+                                                                      "--function-tolerance", "1e-6"});
+                     // (The same settings: equal but for the threads' summation order, ~1e-14.)
+                     const std::vector<double> k = photomill::test::json_array(r.report, "refined_camera");
+                     const std::vector<double> k_spelt = photomill::test::json_array(spelt.report, "refined_camera");
+                     ASSERT_EQ(k.size(), 9u) << r.report;
+                     ASSERT_EQ(k_spelt.size(), k.size());
+                     for (std::size_t i = 0; i < k.size(); ++i) EXPECT_NEAR(k[i], k_spelt[i], 1e-9 * (1 + std::abs(k[i])));
+                     EXPECT_NEAR(json_number(r.report, "final_rms_px"), json_number(spelt.report, "final_rms_px"), 1e-9);
+                     EXPECT_GT(std::abs(json_number(r.report, "final_rms_px") - json_number(plain().report, "final_rms_px")), 1e-6)
+                         << "the preset refines the camera: another fit than the plain run's";
+                     EXPECT_EQ(json_raw(r.report, "refine_intrinsics"), "\"all\"");
+                     const Outcome held = triangulate(Scene::Plain, {"--preset", "features", "--refine-intrinsics", "none"});
+                     EXPECT_EQ(json_raw(held.report, "refine_intrinsics"), "\"none\"") << "the option given wins";
+                   }},
+        bad("preset_unknown", {"--preset", "fast"}, "--preset"),
         OptionCase{"covariance_max_parameters", Scene::Plain, {"--covariance-max-parameters", "10"}, 0, "",
                    [](const Outcome& r) {
                      EXPECT_EQ(json_raw(r.report, "method", "uncertainty"), "\"per_point_fixed_poses\"");
