@@ -138,7 +138,7 @@ Camera to_camera(const Parameters& p, cv::Size size, const ModelOptions& model, 
   Camera c;
   c.image_width_px = size.width;
   c.image_height_px = size.height;
-  c.camera_matrix << p.intrinsics[0], 0, p.intrinsics[2], 0, p.intrinsics[1], p.intrinsics[3], 0, 0, 1;
+  c.camera_matrix = camera_matrix(p);
   c.distortion.assign(p.distortion.begin(), p.distortion.begin() + (model.rational ? 8 : 5));
   c.avg_reprojection_error_px = rms_px;
   return c;

@@ -21,16 +21,6 @@ double median(std::vector<double> v) {
   return n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-// K = [fx 0 cx; 0 fy cy; 0 0 1] from the intrinsics block (fx, fy, cx, cy).
-Eigen::Matrix3d camera_matrix(const Parameters& p) {
-  Eigen::Matrix3d K = Eigen::Matrix3d::Identity();
-  K(0, 0) = p.intrinsics[0];
-  K(1, 1) = p.intrinsics[1];
-  K(0, 2) = p.intrinsics[2];
-  K(1, 2) = p.intrinsics[3];
-  return K;
-}
-
 std::array<double, kPose> pose_from(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
   const Eigen::AngleAxisd aa(R);
   const Eigen::Vector3d r = aa.angle() * aa.axis();

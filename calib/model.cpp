@@ -15,6 +15,15 @@ std::array<bool, kDistortion> free_distortion(const ModelOptions& m) {
   return {true, true, !m.zero_tangent, !m.zero_tangent, !m.fix_k3, m.rational, m.rational, m.rational};
 }
 
+Eigen::Matrix3d camera_matrix(const Parameters& p) {
+  Eigen::Matrix3d K = Eigen::Matrix3d::Identity();
+  K(0, 0) = p.intrinsics[0];
+  K(1, 1) = p.intrinsics[1];
+  K(0, 2) = p.intrinsics[2];
+  K(1, 2) = p.intrinsics[3];
+  return K;
+}
+
 const std::array<std::string, kIntrinsics>& intrinsic_names() {
   static const std::array<std::string, kIntrinsics> names{"fx", "fy", "cx", "cy"};
   return names;

@@ -39,6 +39,9 @@ struct Parameters {
   std::vector<std::array<double, kPose>> poses;  // one per view
 };
 
+// K = [fx 0 cx; 0 fy cy; 0 0 1] from the intrinsics block (fx, fy, cx, cy).
+Eigen::Matrix3d camera_matrix(const Parameters& p);
+
 // Which elements of each block are free under `model` (the rest are constant).
 std::array<bool, kIntrinsics> free_intrinsics(const ModelOptions& model);
 std::array<bool, kDistortion> free_distortion(const ModelOptions& model);
