@@ -563,6 +563,113 @@ double swept_ball_bottom(const Eigen::Vector3d& A, const Eigen::Vector3d& B, dou
   return ds * ds < r2 ? A.z() + m * s - std::sqrt(r2 - ds * ds) : kInf;
 }
 
+void sample_surface_heights(const BSplineSurface& surface, HeightGrid& hg, int threads) {
+  if (!(hg.cell_mm > 0) || !std::isfinite(hg.cell_mm) || hg.nx <= 0 || hg.ny <= 0) throw UsageError("height grid: empty or cell <= 0");
+  if (static_cast<double>(hg.nx) * static_cast<double>(hg.ny) > 1e8) throw GeometryError("height grid over 100 million nodes");
+  const SurfaceInverter inv(surface);
+  Grid g;
+  g.lo = hg.lo, g.cell = hg.cell_mm, g.nx = hg.nx, g.ny = hg.ny;
+  g.hi = g.node_xy(g.nx - 1, g.ny - 1);
+  hg.z = sample_surface(surface, inv, g, geometry::thread_count(threads)).z;
+}
+
+std::pair<Eigen::Vector2d, Eigen::Vector2d> surface_xy_extent(const BSplineSurface& surface) {
+  const SurfaceInverter inv(surface);
+  return {inv.lo(), inv.hi()};
+}
+
+double swept_cutter_bottom(const Eigen::Vector3d& A, const Eigen::Vector3d& B, const Cutter& c, const Eigen::Vector2d& xy) {
+  const double R = c.radius_mm, rc = c.corner_radius_mm;
+  if (rc >= R) {
+    const Eigen::Vector3d up(0, 0, R);
+    return swept_ball_bottom(A + up, B + up, R, xy);
+  }
+  const Eigen::Vector2d b = B.head<2>() - A.head<2>();
+  const double l = b.norm();
+  // The profile above the tip at distance rho from the axis.
+  const auto lift = [&](double rho) {
+    const double flat = R - rc;
+    if (rho <= flat) return 0.0;
+    const double t = std::min(rho - flat, rc);
+    return rc - std::sqrt(std::max(0.0, rc * rc - t * t));
+  };
+  if (l < 1e-12) {
+    const double rho = (xy - A.head<2>()).norm();
+    return rho > R ? kInf : std::min(A.z(), B.z()) + lift(rho);
+  }
+  const Eigen::Vector2d e = b / l;
+  const Eigen::Vector2d w = xy - A.head<2>();
+  const double sigma0 = w.dot(e);
+  const double perp = e.x() * w.y() - e.y() * w.x();
+  const double r2 = R * R - perp * perp;
+  if (!(r2 >= 0)) return kInf;
+  const double r = std::sqrt(r2);
+  double s0 = std::max(0.0, sigma0 - r), s1 = std::min(l, sigma0 + r);
+  if (s0 > s1) return kInf;
+  const double m = (B.z() - A.z()) / l;
+  const auto at = [&](double sigma) {
+    const double ds = sigma - sigma0;
+    return A.z() + m * sigma + lift(std::min(R, std::sqrt(perp * perp + ds * ds)));
+  };
+  if (rc <= 0) return A.z() + m * (m > 0 ? s0 : s1);
+  // Golden-section search of the convex z(sigma) on [s0, s1].
+  constexpr double kG = 0.6180339887498949;
+  double x1 = s1 - kG * (s1 - s0), x2 = s0 + kG * (s1 - s0);
+  double f1 = at(x1), f2 = at(x2);
+  for (int it = 0; it < 60 && s1 - s0 > 1e-9; ++it) {
+    if (f1 < f2) {
+      s1 = x2, x2 = x1, f2 = f1;
+      x1 = s1 - kG * (s1 - s0);
+      f1 = at(x1);
+    } else {
+      s0 = x1, x1 = x2, f1 = f2;
+      x2 = s0 + kG * (s1 - s0);
+      f2 = at(x2);
+    }
+  }
+  return std::min({f1, f2, at(s0), at(s1)});
+}
+
+void cut_material(HeightGrid& mat, const ClData& cl, const Cutter& c, int threads) {
+  if (!(c.radius_mm > 0) || !(c.corner_radius_mm >= 0)) throw UsageError("cutter radius must be > 0");
+  Grid g;
+  g.lo = mat.lo, g.cell = mat.cell_mm, g.nx = mat.nx, g.ny = mat.ny;
+  g.hi = g.node_xy(g.nx - 1, g.ny - 1);
+  const double R = c.radius_mm;
+  constexpr long kRowsPerBlock = 8;
+  const std::size_t blocks = static_cast<std::size_t>((g.ny + kRowsPerBlock - 1) / kRowsPerBlock);
+  std::vector<std::vector<int>> block_moves(blocks);
+  for (std::size_t k = 1; k < cl.moves.size(); ++k) {
+    const Eigen::Vector3d& a = cl.moves[k - 1].tip_mm;
+    const Eigen::Vector3d& b = cl.moves[k].tip_mm;
+    const double y0 = std::min(a.y(), b.y()) - R, y1 = std::max(a.y(), b.y()) + R;
+    const long j0 = std::max(0L, static_cast<long>(std::ceil((y0 - g.lo.y()) / g.cell)));
+    const long j1 = std::min(g.ny - 1, static_cast<long>(std::floor((y1 - g.lo.y()) / g.cell)));
+    for (long bk = j0 / kRowsPerBlock; j0 <= j1 && bk <= j1 / kRowsPerBlock; ++bk) block_moves[static_cast<std::size_t>(bk)].push_back(static_cast<int>(k));
+  }
+  geometry::parallel_for(blocks, threads, [&](std::size_t bk) {
+    const long jb0 = static_cast<long>(bk) * kRowsPerBlock, jb1 = std::min(g.ny - 1, jb0 + kRowsPerBlock - 1);
+    for (int k : block_moves[bk]) {
+      const Eigen::Vector3d& a = cl.moves[static_cast<std::size_t>(k) - 1].tip_mm;
+      const Eigen::Vector3d& b = cl.moves[static_cast<std::size_t>(k)].tip_mm;
+      const double zlow = std::min(a.z(), b.z());
+      for (long j = jb0; j <= jb1; ++j) {
+        const double y = g.lo.y() + j * g.cell;
+        double x0, x1;
+        if (!stadium_row(a.head<2>(), b.head<2>(), R, y, x0, x1)) continue;
+        const long i0 = std::max(0L, static_cast<long>(std::ceil((x0 - g.lo.x()) / g.cell)));
+        const long i1 = std::min(g.nx - 1, static_cast<long>(std::floor((x1 - g.lo.x()) / g.cell)));
+        double* row = mat.z.data() + static_cast<std::size_t>(j) * g.nx;
+        for (long i = i0; i <= i1; ++i) {
+          if (zlow >= row[i]) continue;  // this move cannot reach below the material here
+          const double z = swept_cutter_bottom(a, b, c, {g.lo.x() + i * g.cell, y});
+          if (z < row[i]) row[i] = z;
+        }
+      }
+    }
+  });
+}
+
 ZmapResult simulate_zmap(const BSplineSurface& surface, const ClData& cl, const ZmapOptions& o) {
   if (!(o.cell_mm > 0) || !std::isfinite(o.cell_mm)) throw UsageError("z-map cell must be > 0");
   if (!(o.tool_radius_mm > 0)) throw UsageError("z-map tool radius must be > 0");

@@ -8,6 +8,8 @@
 #include <cstddef>
 #include <limits>
 #include <optional>
+#include <utility>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -54,6 +56,42 @@ struct ZmapResult {
   double max_excess_z_mm = -std::numeric_limits<double>::infinity();  // vertical, at the nodes
   double seconds = 0;
 };
+
+// The surface's height over a grid of nodes lo + (i, j) cell_mm, i < nx, j < ny, stored row by
+// row (k = j nx + i): z(x, y) by Newton's method on S_xy(u, v) = (x, y), +inf off the surface or
+// outside its boundary polygon.
+struct HeightGrid {
+  Eigen::Vector2d lo = Eigen::Vector2d::Zero();
+  double cell_mm = 0;
+  long nx = 0, ny = 0;
+  std::vector<double> z;
+  Eigen::Vector2d node_xy(long i, long j) const { return lo + cell_mm * Eigen::Vector2d(static_cast<double>(i), static_cast<double>(j)); }
+};
+// Fills grid.z for the nodes grid.lo, cell_mm, nx, ny give (any window, on or off the surface).
+void sample_surface_heights(const BSplineSurface& surface, HeightGrid& grid, int threads);
+// The surface's xy bounding box (min, max), from its sample grid (about 1 mm apart).
+std::pair<Eigen::Vector2d, Eigen::Vector2d> surface_xy_extent(const BSplineSurface& surface);
+
+// A milling cutter: radius R and corner radius r_c (0: flat end mill, R: ball end).
+struct Cutter {
+  double radius_mm = 3;
+  double corner_radius_mm = 3;
+};
+
+// The lowest point of the cutter on the vertical line through xy while its tip moves straight
+// from tip_a to tip_b (+inf if it never passes over xy). With the cutter's profile above its tip
+// f(rho) = 0 for rho <= R - r_c, r_c - sqrt(r_c^2 - (rho - R + r_c)^2) beyond, the travel sigma
+// in [0, l] along the move and rho(sigma) the line's distance from the axis:
+//   z(sigma) = a_z + m sigma + f(rho(sigma)),  rho <= R.
+// Flat (r_c = 0): linear in sigma, least at one end of the interval where rho <= R. Ball: the
+// closed form of swept_ball_bottom. Bull-nose: f is convex and increasing, rho convex, so z is
+// convex in sigma and a golden-section search finds its least.
+double swept_cutter_bottom(const Eigen::Vector3d& tip_a, const Eigen::Vector3d& tip_b, const Cutter& cutter,
+                           const Eigen::Vector2d& xy);
+
+// Lowers material.z (the material's top at the grid's nodes) wherever the cutter passes along
+// the CL moves (rapids included). Rows in blocks, in parallel.
+void cut_material(HeightGrid& material, const ClData& cl, const Cutter& cutter, int threads);
 
 // Throws UsageError for a non-positive cell or radius, GeometryError if the grid would exceed
 // 100 million nodes or the window misses the surface.
