@@ -449,9 +449,7 @@ PostStats write_gcode(std::ostream& out, const std::vector<ClInput>& inputs, con
     } else {
       h += comment(set + (o.origin == Origin::TopCorner ? ": X0 Y0 = stock corner at min X, min Y" : ": X0 Y0 = centre of the stock top"),
                    dialect);
-      h += comment(set + ": Z0 = top of the stock, stock box Z " + gcode_number(o.stock->min_mm.z(), 3) + " to " +
-                       gcode_number(o.stock->max_mm.z(), 3) + " in the CL frame",
-                   dialect);
+      h += comment(set + ": Z0 = top of the stock, Z " + gcode_number(o.stock->max_mm.z(), 3) + " of the CL data", dialect);
     }
   }
   if (has_tool_change(dialect) || (dialect == Dialect::Grbl && inputs.size() > 1)) {
