@@ -101,7 +101,6 @@ std::optional<Arc> try_arc(const std::vector<Vector3d>& pts, double tol, double 
     sweep += angle;
   }
   if (std::abs(sweep) > max_sweep) return std::nullopt;
-  if (r * (1 - std::cos(std::abs(sweep) / 2)) <= tol) return std::nullopt;
   return Arc{*c, sweep};
 }
 
@@ -153,6 +152,10 @@ std::vector<Motion> fit_arcs(const Vector3d& start, const std::vector<Motion>& m
       if (j - i + 1 < 3) continue;
       const auto arc = try_arc(pts, tol_mm, max_sweep);
       if (!arc) break;
+      // A run straight within tol so far (whole-arc sagitta r (1 - cos(sweep / 2)) <= tol) is
+      // left to G1 lines unless it bends further on: its centre may lie anywhere far away.
+      const double r = (pts[0].head<2>() - arc->centre).norm();
+      if (r * (1 - std::cos(std::abs(arc->sweep_rad) / 2)) <= tol_mm) continue;
       best = arc;
       best_j = j;
     }
