@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Independent G-code reader for the toolpath tests (standard library only).
 
-Usage: gcode_check.py PROGRAM.ngc CL.csv [CL2.csv ...] [--dialect D] [--tol MM] [--path-tol MM]
+Usage: gcode_check.py PROGRAM.ngc [CL.csv CL2.csv ...] [--dialect D] [--tol MM] [--path-tol MM]
                       [--offset DX,DY,DZ] [--spindle-off-ok]
 
 Reads an RS-274 program the way the controller of --dialect would, refusing every word outside
@@ -18,6 +18,7 @@ one G1 line to the same point at the same feed (--tol); with --path-tol every CL
 lie within that distance of the posted path (lines and arcs, the one in progress or the next),
 for programs with fitted arcs. Every CL rapid must be reached by G0 lines; nothing else may move
 the tool except G0 lines before a tool's first move and retracts straight up.
+Without CL files only the program is read (the word set, the modes, the spindle before the feeds).
 Prints one summary line; exit 0 if consistent, 1 with the reason otherwise.
 """
 import csv
@@ -268,13 +269,17 @@ def main():
             del args[i:i + 2]
     spindle_check = "--spindle-off-ok" not in args
     args = [a for a in args if a != "--spindle-off-ok"]
-    if len(args) < 2 or opts["--dialect"] not in WORD_SETS:
-        fail("usage: gcode_check.py PROGRAM.ngc CL.csv [CL2.csv ...] [--dialect %s] [--tol MM] [--path-tol MM] "
+    if len(args) < 1 or opts["--dialect"] not in WORD_SETS:
+        fail("usage: gcode_check.py PROGRAM.ngc [CL.csv ...] [--dialect %s] [--tol MM] [--path-tol MM] "
              "[--offset DX,DY,DZ] [--spindle-off-ok]" % "|".join(WORD_SETS))
     tol = float(opts["--tol"])
     path_tol = float(opts["--path-tol"]) if opts["--path-tol"] else None
     offset = [float(v) for v in opts["--offset"].split(",")]
     motions = parse_program(args[0], opts["--dialect"], spindle_check)
+    if len(args) == 1:
+        print("gcode_check: ok: %d motion lines in the %s word set, the spindle on before every feed"
+              % (len(motions), opts["--dialect"]))
+        return
     cl = [m for path in args[1:] for m in read_cl_csv(path, offset)]
     k = 0
     for kind, xyz, feed, first_of_file in cl:
