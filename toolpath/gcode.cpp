@@ -337,7 +337,9 @@ PostStats write_gcode(std::ostream& out, const std::vector<ClInput>& inputs, con
       line += " I" + w.coord(m.centre_mm.x() - w.rounded(pos.x())) + " J" + w.coord(m.centre_mm.y() - w.rounded(pos.y()));
       ++st.arcs;
     }
-    if (m.kind != Motion::Kind::Rapid && m.feed_mm_per_min != feed) {
+    // A move shorter than the program's resolution writes no line, and so no F: the feed it
+    // would have set is set by the next line that is written.
+    if (any && m.kind != Motion::Kind::Rapid && m.feed_mm_per_min != feed) {
       line += " F" + w.feed(m.feed_mm_per_min);
       feed = m.feed_mm_per_min;
     }

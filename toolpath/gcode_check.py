@@ -282,6 +282,7 @@ def main():
         return
     cl = [m for path in args[1:] for m in read_cl_csv(path, offset)]
     k = 0
+    worst = 0.0  # --path-tol: the largest distance of a CL feed point from the posted path
     for kind, xyz, feed, first_of_file in cl:
         here = motions[k - 1][1] if k > 0 else None
         if here is not None and close(here, xyz, tol):
@@ -290,14 +291,19 @@ def main():
             while first_of_file and k < len(motions) and motions[k][0] == 0:
                 k += 1  # the post's own approach from the safe plane
             if path_tol is not None:
-                if k > 0 and motions[k - 1][0] != 0 and distance_to_motion(xyz, motions[k - 1]) <= path_tol:
-                    continue  # on the line or arc in progress
+                ends_next = k < len(motions) and motions[k][0] != 0 and close(motions[k][1], xyz, tol)
+                if not ends_next and k > 0 and motions[k - 1][0] != 0:
+                    d = distance_to_motion(xyz, motions[k - 1])
+                    if d <= path_tol:
+                        worst = max(worst, d)
+                        continue  # inside the line or arc in progress
                 if k >= len(motions):
                     fail("CL feed point %s is on no posted motion" % (xyz,))
                 mode, pos, f, where = motions[k][:4]
                 dist = distance_to_motion(xyz, motions[k])
                 if mode == 0 or dist > path_tol or abs(f - feed) > 0.05:
                     fail("%s: CL feed point %s F%g is %.5f mm from this G%d (F%s), more than %g" % (where, xyz, feed, dist, mode, f, path_tol))
+                worst = max(worst, dist)
                 k += 1
                 continue
             if k >= len(motions):
@@ -322,8 +328,9 @@ def main():
             fail("%s: motion after the last CL move that is not a retract straight up" % where)
         last = pos
     arcs = sum(1 for m in motions if m[0] in (2, 3))
-    print("gcode_check: ok: %d CL moves matched by %d motion lines (%d arcs), %s word set"
-          % (len(cl), len(motions), arcs, opts["--dialect"]))
+    print("gcode_check: ok: %d CL moves matched by %d motion lines (%d arcs), %s word set%s"
+          % (len(cl), len(motions), arcs, opts["--dialect"],
+             "" if path_tol is None else ", CL points at most %.5f mm from the path" % worst))
 
 
 if __name__ == "__main__":

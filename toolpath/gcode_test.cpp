@@ -338,6 +338,17 @@ TEST(Gcode, SeveralClInputsOneToolEach) {
   EXPECT_EQ(check_program(g, {rough, finish}, {"--dialect", "grbl"}).exit_code, 1);
 }
 
+// A feed move too short to write (here: none at all) that changes the feed: the change goes on
+// the next line written, not lost with the skipped one (found by scripts/bench-clpost.sh).
+TEST(Gcode, FeedOfASkippedMoveIsWrittenOnTheNextLine) {
+  ClData cl = small_cl();
+  cl.moves.insert(cl.moves.begin() + 3, {ClMove::Kind::Feed, {0, 0, 10.00001}, std::nullopt, 700});
+  cl.moves[4].feed_mm_per_min = 700;
+  const std::string g = post(cl);
+  EXPECT_NE(g.find("G1 Z10 F300\nG1 X5 Z10.25 F700\nG1 X10 Z10.5 F1000\n"), std::string::npos) << g;
+  EXPECT_EQ(check_program(g, {cl}).exit_code, 0);
+}
+
 TEST(Gcode, RefusesOptionsTheDialectHasNoWordFor) {
   GcodeOptions o;
   o.blend_tol_mm = 0.01;  // G64 P: LinuxCNC only
