@@ -17,6 +17,8 @@ if [ "${1:-}" = "--tests" ]; then
     poppler-utils  # pdftoppm renders the targets' PDF (targets/targets_test.cpp)
     cloudcompare   # loads the walkthrough's cloud.ply (tests/walkthrough_test.sh)
     chromium       # opens the job's report.html headless (tests/report_browser_test.sh, walkthrough_test.sh)
+    linuxcnc-uspace  # rs274, LinuxCNC's G-code interpreter standalone: runs clpost's linuxcnc dialect
+                     # (toolpath/cli_test.cpp ClpostRs274; ~100 packages with their dependencies)
   )
   # npm installs playwright-core, which drives that Chromium (tests/browser; it downloads no
   # browser): Debian's nodejs and npm, unless a node with npm is there already.

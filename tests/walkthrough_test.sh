@@ -77,6 +77,8 @@ done
 out=$(sed -n 's/.*OUT=\([^ ]*\).*/\1/p' "$blocks"/*.sh | head -1)
 [ -n "$out" ] && [ -s "$work/job/$out/part.ngc" ] || fail "the walkthrough's make wrote no part.ngc (OUT=$out)"
 "$build/tools/bin/synth_accuracy" -q --truth "$src/data/demo" --outputs "$work/job/$out" --surface-rms-bound-mm 0.05
+# The program as a controller reads it (issue 26): the generic word set, the spindle on before every feed.
+python3 "$src/toolpath/gcode_check.py" "$work/job/$out/part.ngc" >&2 || fail "$out/part.ngc: see gcode_check above"
 
 # --- the job's report page (issue 27): every picture and the headline figures, in headless Chromium -----
 [ -s "$work/job/$out/report.html" ] || fail "the walkthrough's make wrote no $out/report.html"
@@ -117,6 +119,7 @@ mkdir -p "$work/empty"
   { tail -20 "$work/empty/make.log" >&2; fail "the installed Makefile's scan and cad goals failed"; }
 for f in demo/scan/part.ngc demo/cad/part.ngc; do
   [ -s "$work/empty/$f" ] || fail "the installed demo wrote no $f"
+  python3 "$src/toolpath/gcode_check.py" "$work/empty/$f" >&2 || fail "$f: see gcode_check above"
 done
 # (their accuracy: ctest demo_scan_chain, the same goal from the source tree)
 echo "walkthrough_test: installed into $prefix; the walkthrough's $n_blocks blocks and the installed demo's scan and cad goals ran" >&2

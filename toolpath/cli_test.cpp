@@ -1,5 +1,10 @@
 // Golden CLI cases for toolpath and clpost (arguments, stdin, exit code, what stdout and stderr
 // must hold), and the pipeline surface -> toolpath -> clpost -> independent G-code reader.
+#include <array>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -8,6 +13,7 @@
 
 #include "formats/cad.hpp"
 #include "formats/surface.hpp"
+#include "tests/option_check.hpp"
 #include "tests/run_tool.hpp"
 #include "tests/temp_dir.hpp"
 #include "toolpath/test_surfaces.hpp"
@@ -218,6 +224,97 @@ TEST(ToolpathCli, PipelineThroughClpostReadsBackInAnIndependentReader) {
   const ToolResult from_csv = run_tool("clpost", {csv.string()});
   EXPECT_EQ(from_csv.exit_code, 0) << from_csv.err;
   EXPECT_NE(from_csv.out.find("G1 "), std::string::npos);
+}
+
+// The linuxcnc dialect through LinuxCNC's own interpreter (rs274, Debian package linuxcnc-uspace,
+// run standalone with a tool table): two tools (T M6, G43 H), no error, the spindle started
+// before the first feed, and every CL point of both files among its canonical moves, in order;
+// the same with fitted arcs. Skipped where rs274 is not installed.
+TEST(ClpostRs274, LinuxcncDialectRunsInLinuxcncsInterpreter) {
+  if (run_tool("/bin/sh", {"-c", "command -v rs274"}).exit_code != 0) {
+    if (std::getenv("CI") != nullptr) FAIL() << "rs274 is not installed (scripts/install-deps.sh --tests installs linuxcnc-uspace)";
+    GTEST_SKIP() << "rs274 is not installed (Debian package linuxcnc-uspace; scripts/install-deps.sh --tests installs it)";
+  }
+  TempDir dir;
+  const fs::path cl = dir.path() / "part.cl", csv = dir.path() / "part.csv", tbl = dir.path() / "tool.tbl";
+  ASSERT_EQ(run_tool("toolpath", quick({"--spindle-rpm", "12000", "--coolant", "-o", cl.string(), "-"}), ridge_text()).exit_code, 0);
+  ASSERT_EQ(run_tool("toolpath", quick({"--format", "csv", "-o", csv.string(), "-"}), ridge_text()).exit_code, 0);
+  std::ofstream(tbl) << "T1 P1 D6 Z0 ;ball 6\nT2 P2 D6 Z0 ;ball 6\n";
+  std::vector<std::array<double, 3>> points;  // the CL points of both files
+  {
+    std::istringstream rows(photomill::test::read_file(csv));
+    std::string line;
+    std::getline(rows, line);
+    while (std::getline(rows, line)) {
+      std::array<double, 3> p{};
+      std::sscanf(line.c_str() + line.find(',') + 1, "%lf,%lf,%lf", &p[0], &p[1], &p[2]);
+      points.push_back(p);
+    }
+  }
+  for (const bool arcs : {false, true}) {
+    SCOPED_TRACE(arcs ? "with --arc-tol-mm" : "lines only");
+    const fs::path ngc = dir.path() / "part.ngc", canon = dir.path() / "canon.txt";
+    // With arcs the second tool cuts a circle (r 8 mm at Z 10, 2 degrees apart), which the ridge's
+    // passes (straight along X, or up and over in YZ) have none of.
+    const fs::path circle = dir.path() / "circle.csv";
+    {
+      std::ofstream c(circle);
+      c << "move,x_mm,y_mm,z_mm,i,j,k,feed_mm_per_min\nrapid,38,0,12,,,,0\nfeed,38,0,10,,,,300\n";
+      for (int k = 1; k <= 180; ++k) {
+        const double a = k * 3.141592653589793 / 90;
+        c << "feed," << 30 + 8 * std::cos(a) << "," << 8 * std::sin(a) << ",10,,,,800\n";
+      }
+    }
+    std::vector<std::string> args{"--dialect", "linuxcnc", "--tool-numbers", "1,2", cl.string(),
+                                  arcs ? circle.string() : cl.string(), "-o", ngc.string()};
+    if (arcs) args.insert(args.end(), {"--arc-tol-mm", "0.02"});
+    const ToolResult post = run_tool("clpost", args);
+    ASSERT_EQ(post.exit_code, 0) << post.err;
+    const ToolResult r = run_tool("/usr/bin/env", {"rs274", "-t", tbl.string(), "-g", ngc.string(), canon.string()});
+    EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+    const std::string out = photomill::test::read_file(canon);
+    EXPECT_NE(out.find("CHANGE_TOOL(2)"), std::string::npos);
+    EXPECT_NE(out.find("PROGRAM_END()"), std::string::npos) << out.substr(out.size() > 2000 ? out.size() - 2000 : 0);
+    const auto spindle = out.find("START_SPINDLE_CLOCKWISE"), feed = out.find("STRAIGHT_FEED(");
+    ASSERT_NE(feed, std::string::npos);
+    EXPECT_LT(spindle, feed);
+    // Canonical end points (X, Y, Z are the first three numbers of each motion call).
+    std::vector<std::array<double, 3>> moves;
+    std::istringstream lines(out);
+    for (std::string line; std::getline(lines, line);) {
+      for (const char* call : {"STRAIGHT_TRAVERSE(", "STRAIGHT_FEED(", "ARC_FEED("}) {
+        const auto at = line.find(call);
+        if (at == std::string::npos) continue;
+        std::array<double, 5> v{};
+        std::sscanf(line.c_str() + at + std::strlen(call), "%lf, %lf, %lf, %lf, %lf", &v[0], &v[1], &v[2], &v[3], &v[4]);
+        // ARC_FEED(first_end, second_end, first_axis, second_axis, rotation, axis_end_point, ...)
+        if (std::string(call) == "ARC_FEED(") {
+          std::sscanf(line.c_str() + at + std::strlen(call), "%lf, %lf, %*f, %*f, %*d, %lf", &v[0], &v[1], &v[2]);
+        }
+        moves.push_back({v[0], v[1], v[2]});
+      }
+    }
+    if (arcs) {
+      EXPECT_GE(photomill::test::count_of(out, "ARC_FEED("), 4u);  // 360 degrees, at most 90 each
+      continue;  // points inside an arc are no canonical end point (gcode_test holds them to the tolerance)
+    }
+    std::size_t k = 0, missing = 0;
+    for (const auto& p : points) {
+      for (int pass = 0; pass < 2; ++pass) {  // each point: found from where the last one was (both files)
+        std::size_t j = k;
+        while (j < moves.size() && !(std::abs(moves[j][0] - p[0]) < 6e-5 && std::abs(moves[j][1] - p[1]) < 6e-5 &&
+                                     std::abs(moves[j][2] - p[2]) < 6e-5)) {
+          ++j;
+        }
+        if (j < moves.size()) {
+          k = j;
+          break;
+        }
+        if (pass == 1) ++missing;
+      }
+    }
+    EXPECT_EQ(missing, 0u) << "of " << points.size() << " CL points";
+  }
 }
 
 }  // namespace

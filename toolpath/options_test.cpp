@@ -216,7 +216,56 @@ INSTANTIATE_TEST_SUITE_P(
                      EXPECT_GE(r.r.out.size(), 2u);
                      EXPECT_EQ(r.r.out.substr(r.r.out.size() - 2), "%\n") << r.r.out;
                      EXPECT_EQ(count_of(clpost_run({}).r.out, "%"), 0u);
-                   }}),
+                   }},
+        OptionCase{"clpost_dialect", cp({"--dialect", "linuxcnc"}), 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_NE(r.r.out.find("\nT1 M6\nG0 G43 H1 Z20\nS9000 M3\n"), std::string::npos) << r.r.out;
+                     EXPECT_NE(r.r.out.find("\nG64 P0.005\n"), std::string::npos) << r.r.out;
+                   }},
+        bad("clpost_dialect_bad", cp({"--dialect", "heidenhain"}), "--dialect"),
+        OptionCase{"clpost_work_offset", cp({"--work-offset", "G55"}), 0, "",
+                   [](const Outcome& r) { EXPECT_NE(r.r.out.find("\nG55\n"), std::string::npos) << r.r.out; }},
+        bad("clpost_work_offset_bad", cp({"--work-offset", "G53"}), "--work-offset"),
+        OptionCase{"clpost_origin_and_stock_box_mm",
+                   cp({"--origin", "top-corner", "--stock-box-mm", "-5,-5,0,15,5,8", "--safe-z-mm", "20"}), 0, "",
+                   [](const Outcome& r) {
+                     // Program = CL - (xmin, ymin, zmax): the feed to (10.5678, 0, 5.1234) at X15.5678 Y5 Z-2.8766.
+                     EXPECT_NE(r.r.out.find("G0 X5 Y5 Z12\nG1 Z-2.8766 F800\nG1 X15.5678\n"), std::string::npos) << r.r.out;
+                     EXPECT_NE(r.r.out.find("Z0 = top of the stock, Z 8 of the CL data"), std::string::npos) << r.r.out;
+                     EXPECT_NE(r.r.out.find("X0 Y0 = stock corner at min X, min Y"), std::string::npos) << r.r.out;
+                   }},
+        OptionCase{"clpost_origin_top_centre", cp({"--origin", "top-centre", "--stock-box-mm", "-5,-5,0,15,5,8"}), 0, "",
+                   [](const Outcome& r) { EXPECT_NE(r.r.out.find("G0 X-5 Y0 Z12\nG1 Z-2.8766 F800\nG1 X5.5678\n"), std::string::npos) << r.r.out; }},
+        bad("clpost_origin_without_stock_box_mm", cp({"--origin", "top-centre"}), "--stock-box-mm"),
+        bad("clpost_stock_box_mm_five_values", cp({"--stock-box-mm", "0,0,0,1,1"}), "--stock-box-mm"),
+        bad("clpost_stock_box_mm_empty", cp({"--stock-box-mm", "0,0,5,1,1,5"}), "--stock-box-mm"),
+        OptionCase{"clpost_blend_tol_mm", cp({"--dialect", "linuxcnc", "--blend-tol-mm", "0.02"}), 0, "",
+                   [](const Outcome& r) { EXPECT_NE(r.r.out.find("\nG64 P0.02\n"), std::string::npos) << r.r.out; }},
+        bad("clpost_blend_tol_mm_not_linuxcnc", cp({"--dialect", "grbl", "--blend-tol-mm", "0.02"}), "--blend-tol-mm"),
+        bad("clpost_blend_tol_mm_zero", cp({"--dialect", "linuxcnc", "--blend-tol-mm", "0"}), "--blend-tol-mm"),
+        OptionCase{"clpost_program_number", cp({"--dialect", "fanuc", "--program-number", "4321"}), 0, "",
+                   [](const Outcome& r) { EXPECT_EQ(r.r.out.rfind("%\nO4321\n", 0), 0u) << r.r.out; }},
+        bad("clpost_program_number_macro", cp({"--dialect", "fanuc", "--program-number", "9000"}), "--program-number"),
+        OptionCase{"clpost_tool_numbers", cp({"--dialect", "fanuc", "--tool-numbers", "7"}), 0, "",
+                   [](const Outcome& r) { EXPECT_NE(r.r.out.find("\nT7 M06\nG0 G43 H7 Z20.\n"), std::string::npos) << r.r.out; }},
+        bad("clpost_tool_numbers_two_for_one", cp({"--tool-numbers", "1,2"}), "--tool-numbers"),
+        bad("clpost_tool_numbers_zero", cp({"--tool-numbers", "0"}), "--tool-numbers"),
+        OptionCase{"clpost_rapid_mm_per_min", cp({"--dialect", "grbl", "--rapid-mm-per-min", "1000"}), 0, "",
+                   [](const Outcome& r) {
+                     // Feeds 14.8766 + 10.5678 mm at 800 mm/min = 1.908 s; rapid 0 (the first position is unknown).
+                     EXPECT_NE(r.r.out.find("(estimated cycle time 0 min, 0 tool changes"), std::string::npos) << r.r.out;
+                     EXPECT_NE(r.r.out.find("at 1000 mm/min"), std::string::npos) << r.r.out;
+                   }},
+        bad("clpost_rapid_mm_per_min_zero", cp({"--rapid-mm-per-min", "0"}), "--rapid-mm-per-min"),
+        OptionCase{"clpost_tool_change_s", cp({"--dialect", "mach3", "--tool-change-s", "120"}), 0, "",
+                   [](const Outcome& r) {
+                     // One tool change (T1 M6) of 2 min + 1.9 s of feed.
+                     EXPECT_NE(r.r.out.find("(estimated cycle time 2 min, 1 tool changes"), std::string::npos) << r.r.out;
+                   }},
+        bad("clpost_tool_change_s_negative", cp({"--tool-change-s", "-1"}), "--tool-change-s"),
+        OptionCase{"clpost_arc_tol_mm", cp({"--arc-tol-mm", "0.01"}), 0, "",
+                   [](const Outcome& r) { EXPECT_EQ(r.r.out, clpost_run({}).r.out); }},  // straight lines: no arc
+        bad("clpost_arc_tol_mm_zero", cp({"--arc-tol-mm", "0"}), "--arc-tol-mm")),
     [](const auto& info) { return std::string(info.param.name); });
 
 }  // namespace
