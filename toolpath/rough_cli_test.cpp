@@ -64,7 +64,9 @@ TEST_P(RoughCli, GoldenCase) {
 INSTANTIATE_TEST_SUITE_P(
     Cases, RoughCli,
     ::testing::Values(
-        CliCase{"apt", quick({"-"}), 0, "CUTTER/6,0\n", "levels from z"},
+        CliCase{"apt", quick({"-"}), 0, "CUTTER/6,0\n", "levels (2 at flats) from z"},
+        CliCase{"no_flats", quick({"--flat-tol-mm", "0", "-"}), 0, "GOTO/", "levels (0 at flats) from z"},
+        CliCase{"flat_tol_over_step_down", quick({"--flat-tol-mm", "5", "-"}), 2, "", "--flat-tol-mm"},
         CliCase{"csv", quick({"--format", "csv", "-"}), 0, "move,x_mm,y_mm,z_mm,i,j,k,feed_mm_per_min\nrapid,", ""},
         CliCase{"bad_format", quick({"--format", "nc", "-"}), 2, "", "--format"},
         CliCase{"face_of_text", quick({"--face", "1", "-"}), 2, "", "--face 1"},
@@ -140,6 +142,44 @@ TEST(RoughCli, OutputFileOnlyOnSuccessAndClpostPostsIt) {
   ASSERT_NE(spindle, std::string::npos);
   ASSERT_NE(first_feed, std::string::npos);
   EXPECT_LT(spindle, first_feed);
+}
+
+// cutsim on rough's program: every option, its outputs, its refusals.
+TEST(CutsimCli, EveryOptionAndItsOutputs) {
+  TempDir dir;
+  const fs::path surf = dir.path() / "dome.surf", apt = dir.path() / "rough.cl", csv = dir.path() / "rough.csv";
+  const fs::path report = dir.path() / "cut.json", picture = dir.path() / "cut.png";
+  std::ofstream(surf) << dome_text();
+  ASSERT_EQ(run_tool("rough", quick({surf.string(), "-o", apt.string()})).exit_code, 0);
+  ASSERT_EQ(run_tool("rough", quick({"--format", "csv", surf.string(), "-o", csv.string()})).exit_code, 0);
+  ToolResult r = run_tool("cutsim", {surf.string(), apt.string(), "--cell-mm", "0.5", "--allowance-mm", "0.5", "--plunge-angle-deg", "60",
+                                     "--stock-margin-mm", "2", "--threads", "1", "--report", report.string(), "--picture",
+                                     picture.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out, "");
+  EXPECT_NE(r.err.find("0 rapids and 0 plunges into material"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("where the last cutter reaches"), std::string::npos) << r.err;
+  std::ifstream j(report);
+  const std::string json((std::istreambuf_iterator<char>(j)), std::istreambuf_iterator<char>());
+  EXPECT_NE(json.find("\"tool\":\"cutsim\""), std::string::npos) << json.substr(0, 200);
+  EXPECT_NE(json.find("\"plunge_angle_deg\":60"), std::string::npos);
+  EXPECT_GT(fs::file_size(picture), 1000u);
+  // A given stock; the CSV program needs its cutter named.
+  r = run_tool("cutsim", {surf.string(), csv.string(), "--cell-mm", "0.5", "--stock-box-mm", "-15,-15,0,15,15,9"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("no cutter"), std::string::npos) << r.err;
+  r = run_tool("cutsim", {surf.string(), csv.string(), "--cell-mm", "0.5", "--stock-box-mm", "-15,-15,0,15,15,9", "--tool-diameter-mm", "6",
+                          "--corner-radius-mm", "0", "-q"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  r = run_tool("cutsim", {surf.string(), apt.string(), "--face", "1"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--face 1"), std::string::npos) << r.err;
+  r = run_tool("cutsim", {surf.string(), (dir.path() / "none.cl").string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("none.cl"), std::string::npos) << r.err;
+  r = run_tool("cutsim", {surf.string()});
+  EXPECT_EQ(r.exit_code, 2) << "a CL program is required";
 }
 
 }  // namespace

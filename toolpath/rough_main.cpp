@@ -41,6 +41,7 @@ int main(int argc, char** argv) {
         app.add_option("--corner-radius-mm", o.corner_radius_mm, "Corner radius: 0 flat, up to half the diameter (bull-nose)")->capture_default_str();
         app.add_option("--step-down-mm", o.step_down_mm, "Depth between z levels (> 0)")->capture_default_str();
         app.add_option("--step-over-mm", o.step_over_mm, "Between offset contours, up to the tool radius (0: 40 % of the diameter)")->capture_default_str();
+        app.add_option("--flat-tol-mm", o.flat_tol_mm, "A level at the top of each flat: tip heights within this over 2 % of the stock (0: none)")->capture_default_str();
         app.add_option("--allowance-mm", o.allowance_mm, "Material left on the surface for finishing (>= 0)")->capture_default_str();
         app.add_option("--stock-box-mm", box, "Stock XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (default: the surface's box grown by --stock-margin-mm)");
         app.add_option("--stock-margin-mm", o.stock_margin_mm, "Default stock: this much around and above the surface")->capture_default_str();
@@ -70,7 +71,7 @@ int main(int argc, char** argv) {
         const RoughingResult r = generate_roughing(in.surface, o);
         const RoughingStats& s = r.stats;
         step.reset();
-        log::info(std::to_string(s.levels) + " levels from z " + f3(s.top_level_mm) + " to " + f3(s.bottom_level_mm) + " mm, " +
+        log::info(std::to_string(s.levels) + " levels (" + std::to_string(s.flat_levels) + " at flats) from z " + f3(s.top_level_mm) + " to " + f3(s.bottom_level_mm) + " mm, " +
                   std::to_string(s.loops) + " loops (" + std::to_string(s.ramps) + " ramp, " + std::to_string(s.helices) +
                   " helix, " + std::to_string(s.straight_entries) + " straight entries), feed " + f3(s.feed_length_mm) +
                   " mm, about " + f3(s.cycle_time_min) + " min at feed, " + f3(s.seconds) + " s");

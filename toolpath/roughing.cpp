@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <charconv>
 #include <chrono>
+#include <functional>
 #include <cmath>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
@@ -44,26 +46,42 @@ double profile(double rho, double R, double rc) {
   return rc - std::sqrt(std::max(0.0, rc * rc - t * t));
 }
 
-// Step 1: the part's height at the nodes, the largest of each node and its 8 neighbours; off the
-// surface the stock's bottom.
+// Step 1: the part's height at the nodes, the largest of each node and its 8 neighbours plus a
+// curvature margin; off the surface the stock's bottom. A peak between nodes lies within
+// d <= cell / sqrt(2) of a node and rises above it by at most |z''| d^2 / 2 <= |z''| cell^2 / 4
+// (Taylor), |z''| taken as the largest second difference in x and y around the node.
 std::vector<double> part_heights(const BSplineSurface& surface, const Grid& g, double bottom, int threads) {
   HeightGrid hg;
   hg.lo = g.lo, hg.cell_mm = g.cell, hg.nx = g.nx, hg.ny = g.ny;
   sample_surface_heights(surface, hg, threads);
+  const auto z = [&](int i, int j) { return i < 0 || j < 0 || i >= g.nx || j >= g.ny ? -kInf : hg.z[g.at(i, j)]; };
+  std::vector<double> d2(g.size(), 0.0);
+  geometry::parallel_for(static_cast<std::size_t>(g.ny), threads, [&](std::size_t jj) {
+    const int j = static_cast<int>(jj);
+    for (int i = 0; i < g.nx; ++i) {
+      const double c = z(i, j);
+      if (!std::isfinite(c)) continue;
+      double k = 0;
+      for (const auto& [a, b] : {std::pair{z(i - 1, j), z(i + 1, j)}, std::pair{z(i, j - 1), z(i, j + 1)}}) {
+        if (std::isfinite(a) && std::isfinite(b)) k = std::max(k, std::abs(a - 2 * c + b));
+      }
+      d2[g.at(i, j)] = k;  // |z''| cell^2
+    }
+  });
   std::vector<double> h(g.size(), bottom);
   geometry::parallel_for(static_cast<std::size_t>(g.ny), threads, [&](std::size_t jj) {
     const int j = static_cast<int>(jj);
     for (int i = 0; i < g.nx; ++i) {
-      double best = bottom;
+      double best = -kInf, curv = 0;
       for (int dj = -1; dj <= 1; ++dj) {
         for (int di = -1; di <= 1; ++di) {
-          const int a = i + di, b = j + dj;
-          if (a < 0 || b < 0 || a >= g.nx || b >= g.ny) continue;
-          const double z = hg.z[g.at(a, b)];
-          if (std::isfinite(z)) best = std::max(best, z);
+          const double zn = z(i + di, j + dj);
+          if (!std::isfinite(zn)) continue;
+          best = std::max(best, zn);
+          curv = std::max(curv, d2[g.at(i + di, j + dj)]);
         }
       }
-      h[g.at(i, j)] = best;
+      h[g.at(i, j)] = std::isfinite(best) ? std::max(bottom, best + 0.25 * curv) : bottom;
     }
   });
   return h;
@@ -131,7 +149,7 @@ public:
 
 private:
   // Calls fn(node, distance) for the nodes within `reach` of the segment a-b: row by row over
-  // the x interval of the capsule (the union of the end discs and the band between them).
+  // the x interval of the capsule (zmap.hpp capsule_row).
   template <class Fn>
   void visit(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double reach, Fn&& fn) const {
     const double ylo = std::min(a.y(), b.y()) - reach, yhi = std::max(a.y(), b.y()) + reach;
@@ -139,29 +157,10 @@ private:
     const int j1 = std::min(g_.ny - 1, static_cast<int>(std::floor((yhi - g_.lo.y()) / g_.cell)));
     const Eigen::Vector2d d = b - a;
     const double l2 = d.squaredNorm();
-    const double r2 = reach * reach;
     for (int j = j0; j <= j1; ++j) {
       const double y = g_.lo.y() + j * g_.cell;
-      // x interval: the end discs', widened by the band's where the segment is not horizontal.
-      double x0 = kInf, x1 = -kInf;
-      for (const Eigen::Vector2d& c : {a, b}) {
-        const double dy = y - c.y();
-        if (dy * dy <= r2) {
-          const double h = std::sqrt(r2 - dy * dy);
-          x0 = std::min(x0, c.x() - h), x1 = std::max(x1, c.x() + h);
-        }
-      }
-      if (l2 > 0 && std::abs(d.y()) > 1e-12) {
-        // Where the segment's line crosses this row, +- the band's half width along x.
-        const double len = std::sqrt(l2);
-        const double half = reach * len / std::abs(d.y());
-        const double t = std::clamp((y - a.y()) / d.y(), 0.0, 1.0);
-        const double xc = a.x() + t * d.x();
-        x0 = std::min(x0, xc - half), x1 = std::max(x1, xc + half);
-      } else if (l2 > 0 && std::abs(y - a.y()) <= reach) {
-        x0 = std::min(x0, std::min(a.x(), b.x())), x1 = std::max(x1, std::max(a.x(), b.x()));
-      }
-      if (!(x0 <= x1)) continue;
+      double x0, x1;
+      if (!capsule_row(a, b, reach, y, x0, x1)) continue;
       const int i0 = std::max(0, static_cast<int>(std::ceil((x0 - g_.lo.x()) / g_.cell)));
       const int i1 = std::min(g_.nx - 1, static_cast<int>(std::floor((x1 - g_.lo.x()) / g_.cell)));
       for (int i = i0; i <= i1; ++i) {
@@ -522,10 +521,12 @@ private:
   const cv::Mat* dist_ = nullptr;
 };
 
-StockBox default_stock(const BSplineSurface& surface, const RoughingOptions& o, int threads) {
+}  // namespace
+
+StockBox default_stock_box(const BSplineSurface& surface, double margin_mm, double cell_mm, int threads) {
   const auto [lo, hi] = surface_xy_extent(surface);
   HeightGrid hg;
-  hg.cell_mm = std::max(o.cell_mm, 0.5);
+  hg.cell_mm = std::max(cell_mm, 0.5);
   hg.lo = lo;
   hg.nx = static_cast<long>(std::floor((hi.x() - lo.x()) / hg.cell_mm)) + 1;
   hg.ny = static_cast<long>(std::floor((hi.y() - lo.y()) / hg.cell_mm)) + 1;
@@ -536,13 +537,11 @@ StockBox default_stock(const BSplineSurface& surface, const RoughingOptions& o, 
   }
   if (!std::isfinite(zlo)) throw GeometryError("roughing: the surface has no point over its own extent");
   StockBox s;
-  const double m = o.stock_margin_mm;
+  const double m = margin_mm;
   s.min_mm = {lo.x() - m, lo.y() - m, zlo};
   s.max_mm = {hi.x() + m, hi.y() + m, zhi + m};
   return s;
 }
-
-}  // namespace
 
 StockBox parse_stock_box(const std::string& text) {
   std::vector<double> v;
@@ -584,6 +583,7 @@ void validate(const RoughingOptions& o) {
   if (!(o.retract_mm > 0) || !std::isfinite(o.retract_mm)) throw UsageError("--retract-mm must be > 0");
   if (!(o.clearance_mm >= 0 && o.clearance_mm < o.retract_mm)) throw UsageError("--clearance-mm must be in [0, --retract-mm)");
   if (!(o.simplify_mm >= 0 && o.simplify_mm <= o.cell_mm * 4)) throw UsageError("--simplify-mm must be in [0, 4 cells]");
+  if (!(o.flat_tol_mm >= 0 && o.flat_tol_mm < o.step_down_mm)) throw UsageError("--flat-tol-mm must be in [0, --step-down-mm)");
   if (o.max_moves == 0) throw UsageError("--max-moves must be positive");
   if (o.stock) {
     const StockBox& s = *o.stock;
@@ -643,7 +643,7 @@ RoughingResult generate_roughing(const BSplineSurface& surface, const RoughingOp
   const double R = o.tool_diameter_mm / 2, rc = o.corner_radius_mm;
   if (o.simplify_mm == 0) o.simplify_mm = 0.5 * o.cell_mm;
   const double step_over = o.step_over_mm > 0 ? o.step_over_mm : 0.4 * o.tool_diameter_mm;
-  const StockBox stock = o.stock ? *o.stock : default_stock(surface, o, threads);
+  const StockBox stock = o.stock ? *o.stock : default_stock_box(surface, o.stock_margin_mm, o.cell_mm, threads);
 
   Grid g;
   g.cell = o.cell_mm;
@@ -667,16 +667,26 @@ RoughingResult generate_roughing(const BSplineSurface& surface, const RoughingOp
     if (!any) throw GeometryError("roughing: the stock box does not overlap the surface above its bottom");
   }
   const std::vector<double> t = tip_limits(h, g, R, rc, o.allowance_mm, threads);
-  // Levels: from the stock top down by step-down to the lowest tip height inside the stock.
-  double tmin = kInf;
+  // Levels: from the stock top down by step-down to the lowest tip height inside the stock, and
+  // the tops of the flats.
+  // Flat nodes: T within a 1-degree slope of its four neighbours'.
+  const double flat_step = std::tan(kPi / 180) * g.cell;
+  std::vector<double> inside, flat;
   for (int j = 0; j < g.ny; ++j) {
     for (int i = 0; i < g.nx; ++i) {
       const Eigen::Vector2d p = g.xy(i, j);
       if (p.x() >= stock.min_mm.x() && p.x() <= stock.max_mm.x() && p.y() >= stock.min_mm.y() && p.y() <= stock.max_mm.y()) {
-        tmin = std::min(tmin, t[g.at(i, j)]);
+        const double ti = t[g.at(i, j)];
+        inside.push_back(ti);
+        const bool level = i > 0 && j > 0 && i + 1 < g.nx && j + 1 < g.ny && std::abs(t[g.at(i - 1, j)] - ti) <= flat_step &&
+                           std::abs(t[g.at(i + 1, j)] - ti) <= flat_step && std::abs(t[g.at(i, j - 1)] - ti) <= flat_step &&
+                           std::abs(t[g.at(i, j + 1)] - ti) <= flat_step;
+        if (level) flat.push_back(ti);
       }
     }
   }
+  std::sort(inside.begin(), inside.end());
+  const double tmin = inside.front();
   std::vector<double> levels;
   for (int k = 1;; ++k) {
     const double z = stock.max_mm.z() - k * o.step_down_mm;
@@ -684,6 +694,26 @@ RoughingResult generate_roughing(const BSplineSurface& surface, const RoughingOp
     levels.push_back(z);
   }
   if (tmin < stock.max_mm.z() - 1e-6) levels.push_back(tmin);
+  std::vector<double> flats;
+  if (o.flat_tol_mm > 0) {
+    constexpr double kFlatAreaFraction = 0.02;
+    const auto need = static_cast<std::ptrdiff_t>(std::ceil(kFlatAreaFraction * static_cast<double>(inside.size())));
+    std::sort(flat.begin(), flat.end());
+    for (auto it = flat.begin(); it != flat.end();) {
+      const auto end = std::upper_bound(it, flat.end(), *it + o.flat_tol_mm);
+      if (end - it >= need) {
+        const double z = *(end - 1);
+        if (z < stock.max_mm.z() - 1e-6) flats.push_back(z);
+        it = end;
+      } else {
+        ++it;
+      }
+    }
+  }
+  for (double z : flats) {
+    if (std::none_of(levels.begin(), levels.end(), [&](double l) { return std::abs(l - z) < 0.01; })) levels.push_back(z);
+  }
+  std::sort(levels.begin(), levels.end(), std::greater<>());
 
   RoughingResult r;
   r.cl.part_name = o.part_name;
@@ -696,6 +726,7 @@ RoughingResult generate_roughing(const BSplineSurface& surface, const RoughingOp
   st.step_over_mm = step_over;
   st.safe_z_mm = stock.max_mm.z() + o.retract_mm;
   st.levels = levels.size();
+  st.flat_levels = flats.size();
   if (!levels.empty()) st.top_level_mm = levels.front(), st.bottom_level_mm = levels.back();
 
   Writer w(r, o, st.safe_z_mm);

@@ -6,13 +6,18 @@
 // Pocket Machining", 1991, and the waterline/z-level roughing of CAM systems):
 //  1. The part's height H on a grid over the stock box (cell `cell_mm`): the surface's height
 //     (zmap.hpp, Newton on S_xy(u, v) = (x, y)), taken as the largest of each node and its 8
-//     neighbours so that the surface between nodes cannot rise above it by more than the slope
-//     times one cell; off the surface, the stock's bottom.
+//     neighbours plus |z''| cell^2 / 4 (z'' from second differences: how far a peak between
+//     nodes can rise above the nearest node), so that the surface between nodes does not rise
+//     above it; off the surface, the stock's bottom.
 //  2. The lowest tool-tip height at every node (inverse tool offset, "drop cutter" on the grid):
 //       T(p) = max over nodes q with |q - p| <= R of  H(q) + allowance - f(|q - p|),
 //     with the end mill's profile f(rho) = 0 for rho <= R - r_c and
 //     f(rho) = r_c - sqrt(r_c^2 - (rho - R + r_c)^2) on the corner (r_c = 0: flat end mill).
-//  3. Levels z_k = stock top - k step-down down to min T, the last level at min T.
+//  3. Levels z_k = stock top - k step-down down to min T, the last level at min T, plus a level
+//     at the top of every flat: nodes whose T is within a 1-degree slope of its four
+//     neighbours', grouped in runs of T within `flat_tol_mm`, a run holding at least 2 % of the
+//     stock's nodes (a plate, a terrace), so flats are cut to the allowance instead of keeping a
+//     stair of up to a step-down.
 //  4. At each level the tool centre may go where T <= z (the free region). Its Euclidean distance
 //     D to the nearest forbidden node (OpenCV's exact distanceTransform; the grid's border counts
 //     as forbidden, and the grid reaches R + 2 cells beyond the stock, so the outermost contours
@@ -47,6 +52,10 @@ struct StockBox {
   Eigen::Vector3d min_mm = Eigen::Vector3d::Zero(), max_mm = Eigen::Vector3d::Zero();
 };
 
+// The default stock: the surface's xy box grown by margin_mm on every side, from the surface's
+// lowest point to its highest plus margin_mm (heights sampled on a grid of max(cell, 0.5) mm).
+StockBox default_stock_box(const BSplineSurface& surface, double margin_mm, double cell_mm, int threads);
+
 // "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX" (mm, C locale); throws UsageError naming --stock-box-mm.
 StockBox parse_stock_box(const std::string& text);
 
@@ -55,6 +64,7 @@ struct RoughingOptions {
   double corner_radius_mm = 0;       // r_c: 0 flat, 0 < r_c <= R bull-nose
   double step_down_mm = 2;           // depth between levels
   double step_over_mm = 0;           // between offset contours; 0: 40 % of the diameter
+  double flat_tol_mm = 0.1;          // a flat: level tip heights within this over 2 % of the stock (0: none)
   double allowance_mm = 0.5;         // material left on the surface for finishing
   std::optional<StockBox> stock;     // unset: the surface's box grown by stock_margin_mm (not below its lowest point)
   double stock_margin_mm = 2;        // around and above the surface, for the default stock
@@ -77,6 +87,7 @@ struct RoughingOptions {
 struct RoughingStats {
   StockBox stock;
   std::size_t levels = 0;
+  std::size_t flat_levels = 0;     // of those, levels at flats
   double top_level_mm = 0, bottom_level_mm = 0;
   std::size_t loops = 0;           // offset contours cut
   std::size_t ramps = 0, helices = 0, straight_entries = 0, links = 0;

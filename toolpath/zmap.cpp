@@ -181,40 +181,6 @@ bool inside_polygon(const std::vector<Eigen::Vector2d>& poly, const Eigen::Vecto
   return in;
 }
 
-// The x interval of the row y = const within horizontal distance R of the segment [a, b]
-// (a convex stadium, so the union of its two discs and its rectangle is one interval).
-bool stadium_row(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double R, double y, double& x0, double& x1) {
-  x0 = kInf, x1 = -kInf;
-  for (const Eigen::Vector2d& c : {a, b}) {
-    const double dy = y - c.y();
-    if (dy * dy < R * R) {
-      const double h = std::sqrt(R * R - dy * dy);
-      x0 = std::min(x0, c.x() - h), x1 = std::max(x1, c.x() + h);
-    }
-  }
-  const Eigen::Vector2d d = b - a;
-  const double len = d.norm();
-  if (len > 0) {
-    const Eigen::Vector2d e = d / len;
-    // sigma(x) = (x - a_x) e_x + (y - a_y) e_y in [0, len]; perp(x) = -(x - a_x) e_y + (y - a_y) e_x in [-R, R].
-    double lo = -kInf, hi = kInf;
-    const auto clip = [&](double coef, double offset, double vmin, double vmax) {
-      // vmin <= coef * (x - a_x) + offset <= vmax
-      if (std::abs(coef) < 1e-15) {
-        if (offset < vmin || offset > vmax) lo = kInf, hi = -kInf;
-        return;
-      }
-      double p = (vmin - offset) / coef + a.x(), q = (vmax - offset) / coef + a.x();
-      if (p > q) std::swap(p, q);
-      lo = std::max(lo, p), hi = std::min(hi, q);
-    };
-    clip(e.x(), (y - a.y()) * e.y(), 0.0, len);
-    clip(-e.y(), (y - a.y()) * e.x(), -R, R);
-    if (lo <= hi) x0 = std::min(x0, lo), x1 = std::max(x1, hi);
-  }
-  return x0 <= x1;
-}
-
 struct Segment {
   Eigen::Vector3d a, b;  // ball centres
 };
@@ -350,7 +316,7 @@ void sweep_rows(const Segment& sg, const Grid& g, double R, long jb0, long jb1, 
   for (long j = jb0; j <= jb1; ++j) {
     const double y = g.lo.y() + j * g.cell;
     double x0, x1;
-    if (!stadium_row(sg.a.head<2>(), sg.b.head<2>(), R, y, x0, x1)) continue;
+    if (!capsule_row(sg.a.head<2>(), sg.b.head<2>(), R, y, x0, x1)) continue;
     const long i0 = std::max(0L, static_cast<long>(std::ceil((x0 - g.lo.x()) / g.cell)));
     const long i1 = std::min(g.nx - 1, static_cast<long>(std::floor((x1 - g.lo.x()) / g.cell)));
     double* row = zc.data() + static_cast<std::size_t>(j) * g.nx;
@@ -539,6 +505,40 @@ private:
 
 }  // namespace
 
+// The x interval of the row y = const within horizontal distance R of the segment [a, b]
+// (a convex stadium, so the union of its two discs and its rectangle is one interval).
+bool capsule_row(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double R, double y, double& x0, double& x1) {
+  x0 = kInf, x1 = -kInf;
+  for (const Eigen::Vector2d& c : {a, b}) {
+    const double dy = y - c.y();
+    if (dy * dy < R * R) {
+      const double h = std::sqrt(R * R - dy * dy);
+      x0 = std::min(x0, c.x() - h), x1 = std::max(x1, c.x() + h);
+    }
+  }
+  const Eigen::Vector2d d = b - a;
+  const double len = d.norm();
+  if (len > 0) {
+    const Eigen::Vector2d e = d / len;
+    // sigma(x) = (x - a_x) e_x + (y - a_y) e_y in [0, len]; perp(x) = -(x - a_x) e_y + (y - a_y) e_x in [-R, R].
+    double lo = -kInf, hi = kInf;
+    const auto clip = [&](double coef, double offset, double vmin, double vmax) {
+      // vmin <= coef * (x - a_x) + offset <= vmax
+      if (std::abs(coef) < 1e-15) {
+        if (offset < vmin || offset > vmax) lo = kInf, hi = -kInf;
+        return;
+      }
+      double p = (vmin - offset) / coef + a.x(), q = (vmax - offset) / coef + a.x();
+      if (p > q) std::swap(p, q);
+      lo = std::max(lo, p), hi = std::min(hi, q);
+    };
+    clip(e.x(), (y - a.y()) * e.y(), 0.0, len);
+    clip(-e.y(), (y - a.y()) * e.x(), -R, R);
+    if (lo <= hi) x0 = std::min(x0, lo), x1 = std::max(x1, hi);
+  }
+  return x0 <= x1;
+}
+
 double swept_ball_bottom(const Eigen::Vector3d& A, const Eigen::Vector3d& B, double R, const Eigen::Vector2d& xy) {
   const auto sphere = [&](const Eigen::Vector3d& c) {
     const double d2 = (c.head<2>() - xy).squaredNorm();
@@ -656,7 +656,7 @@ void cut_material(HeightGrid& mat, const ClData& cl, const Cutter& c, int thread
       for (long j = jb0; j <= jb1; ++j) {
         const double y = g.lo.y() + j * g.cell;
         double x0, x1;
-        if (!stadium_row(a.head<2>(), b.head<2>(), R, y, x0, x1)) continue;
+        if (!capsule_row(a.head<2>(), b.head<2>(), R, y, x0, x1)) continue;
         const long i0 = std::max(0L, static_cast<long>(std::ceil((x0 - g.lo.x()) / g.cell)));
         const long i1 = std::min(g.nx - 1, static_cast<long>(std::floor((x1 - g.lo.x()) / g.cell)));
         double* row = mat.z.data() + static_cast<std::size_t>(j) * g.nx;

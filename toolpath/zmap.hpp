@@ -72,6 +72,11 @@ void sample_surface_heights(const BSplineSurface& surface, HeightGrid& grid, int
 // The surface's xy bounding box (min, max), from its sample grid (about 1 mm apart).
 std::pair<Eigen::Vector2d, Eigen::Vector2d> surface_xy_extent(const BSplineSurface& surface);
 
+// The x interval [x0, x1] of the row y = const within horizontal distance R of the segment
+// [a, b] (a convex capsule, so the union of its two discs and its band is one interval); false
+// where the row misses it.
+bool capsule_row(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double R, double y, double& x0, double& x1);
+
 // A milling cutter: radius R and corner radius r_c (0: flat end mill, R: ball end).
 struct Cutter {
   double radius_mm = 3;
