@@ -268,6 +268,7 @@ def run_freecad():
     t_end = time.time()
 
     result = {
+        "freecad_version": ".".join(FreeCAD.Version()[:3]),
         "levels": len(levels),
         "first_level": levels[0],
         "last_level": levels[-1],

@@ -1,0 +1,93 @@
+#!/usr/bin/env bash
+# rough beside FreeCAD 0.20 Path Adaptive (issue 26; docs/measurements/roughing.md): both clear
+# the same stock box with the same 6 mm flat end mill (step-down 2 mm, step-over 40 % = 2.4 mm,
+# allowance 0.5 mm, feed 1000 and plunge/ramp/helix feed 300 mm/min) down to the same surface.
+# photomill: `rough` on the surface text. FreeCAD: scripts/freecad_adaptive.py under freecadcmd on
+# the same surface as STEP (one Adaptive operation per level, see that script for why), posted by
+# FreeCAD's LinuxCNC post and read back into CL CSV. Both CL CSVs are measured by
+# scripts/bench_rough_table.py: CL moves, feed and rapid lengths, cycle time with the rapids at
+# RAPID_MM_PER_MIN (5000, an assumption), the wall time of the program that makes the path; and,
+# when the build has `cutsim`, what is left of the stock (cutsim on each CL with the same tool).
+#
+# FreeCAD is a peer for this benchmark, never a dependency of photomill: without `freecadcmd` the
+# script says so and exits 0 (Debian 12: apt-get install freecad; 0.20.2). Not a ctest.
+#   scripts/bench-rough.sh [BIN_DIR] [SURFACE.txt] [SURFACE.step] [KEEP_DIR]
+# BIN_DIR holds rough (and cutsim, when built); default build/bin. SURFACE defaults to the demo's
+# out/demo/surface.{txt,step}. KEEP_DIR, when given, keeps the CL files, G-code and reports.
+set -euo pipefail
+
+root=$(cd "$(dirname "$0")/.." && pwd)
+bin=$(cd "${1:-$root/build/bin}" && pwd)
+surf_txt=$(realpath "${2:-$root/out/demo/surface.txt}")
+surf_step=$(realpath "${3:-$root/out/demo/surface.step}")
+keep=${4:-}
+tool_d=6 step_down=2 step_over_pct=40 allowance=0.5 feed=1000 plunge=300
+rapid=${RAPID_MM_PER_MIN:-5000}
+
+if ! command -v freecadcmd >/dev/null 2>&1; then
+  echo "bench-rough: skipped: freecadcmd (FreeCAD) is not installed; it is only a peer for this" \
+    "comparison (Debian: apt-get install freecad)" >&2
+  exit 0
+fi
+if [ -n "$keep" ]; then
+  mkdir -p "$keep"
+  work=$(cd "$keep" && pwd)
+else
+  work=$(mktemp -d)
+  trap 'rm -rf "$work"' EXIT
+fi
+cd "$work"
+
+now() { date +%s.%N; }
+echo "== machine: $(nproc) cores; $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')"
+echo "== rough: $bin/rough"
+echo "== surface: $surf_txt (and $surf_step)"
+
+# photomill: rough with its default stock (the surface's box + 2 mm), which the stderr states, and
+# its default step-over (0: 40 % of the diameter)
+rough_args=(--tool-diameter-mm $tool_d --step-down-mm $step_down
+  --allowance-mm $allowance --feed-mm-per-min $feed --plunge-feed-mm-per-min $plunge)
+t0=$(now)
+"$bin/rough" "${rough_args[@]}" --format csv "$surf_txt" -o rough.csv 2>rough.err
+t1=$(now)
+rough_s=$(python3 -c "print('%.2f' % ($t1 - $t0))")
+stock=$(sed -n 's/^rough: stock \([-0-9.]*\),\([-0-9.]*\),\([-0-9.]*\) to \([-0-9.]*\),\([-0-9.]*\),\([-0-9.]*\) mm.*/\1,\2,\3,\4,\5,\6/p' rough.err)
+[ -n "$stock" ] || { echo "bench-rough: no stock line in rough's stderr:" >&2; cat rough.err >&2; exit 1; }
+echo "== stock box: $stock mm"
+echo "== rough: $(grep -m1 'levels from' rough.err | sed 's/^rough: //')"
+
+# FreeCAD: Path Adaptive, one operation per level, on the same stock
+t0=$(now)
+FC_STEP="$surf_step" FC_STOCK="$stock" FC_OUT="$work/adaptive" FC_TOOL_D=$tool_d \
+  FC_STEP_DOWN=$step_down FC_STEP_OVER=$step_over_pct FC_ALLOWANCE=$allowance \
+  FC_FEED=$feed FC_PLUNGE_FEED=$plunge \
+  freecadcmd "$root/scripts/freecad_adaptive.py" >freecad.log 2>&1 || true
+t1=$(now)
+fc_s=$(python3 -c "print('%.2f' % ($t1 - $t0))")
+if ! grep -q '^RESULT cl_moves' freecad.log; then
+  echo "bench-rough: FreeCAD's Adaptive run failed (freecad.log):" >&2
+  grep -v '%)' freecad.log | tail -30 >&2
+  exit 1
+fi
+result() { sed -n "s/^RESULT $1 //p" freecad.log; }
+adaptive_s=$(python3 -c "print('%.2f' % $(result adaptive_s))")
+echo "== FreeCAD $(result freecad_version): $(result levels) Adaptive operations, levels $(result first_level) to $(result last_level) mm; Adaptive's recompute $adaptive_s s of the whole freecadcmd run $fc_s s (import, sections, job, post, read-back included)"
+
+# remaining stock: cutsim, when built
+rough_rep="" fc_rep="" keys=""
+if [ -x "$bin/cutsim" ]; then
+  cut_args=(--stock-box-mm "$stock" --allowance-mm $allowance --tool-diameter-mm $tool_d
+    --corner-radius-mm 0)
+  "$bin/cutsim" "$surf_txt" rough.csv "${cut_args[@]}" --report rough-cutsim.json >rough-cutsim.txt 2>&1
+  "$bin/cutsim" "$surf_txt" adaptive.csv "${cut_args[@]}" --report adaptive-cutsim.json >adaptive-cutsim.txt 2>&1
+  rough_rep=:rough-cutsim.json fc_rep=:adaptive-cutsim.json
+  keys=${CUTSIM_KEYS:-left_p95_mm,left_max_mm,into_allowance_mm,below_surface_mm}
+else
+  echo "== no $bin/cutsim: the remaining stock is not measured"
+fi
+
+echo "== cycle time: each feed move at its feed rate, rapids at $rapid mm/min (assumed)"
+python3 "$root/scripts/bench_rough_table.py" --rapid-mm-per-min "$rapid" --plunge-feed $plunge \
+  ${keys:+--cutsim-keys "$keys"} \
+  "photomill rough:rough.csv:$rough_s$rough_rep" \
+  "FreeCAD 0.20 Adaptive:adaptive.csv:$fc_s (Adaptive $adaptive_s)$fc_rep"
