@@ -56,31 +56,44 @@ stock=$(sed -n 's/^rough: stock \([-0-9.]*\),\([-0-9.]*\),\([-0-9.]*\) to \([-0-
 echo "== stock box: $stock mm"
 echo "== rough: $(grep -m1 'levels from' rough.err | sed 's/^rough: //')"
 
-# FreeCAD: Path Adaptive, one operation per level, on the same stock
-t0=$(now)
-FC_STEP="$surf_step" FC_STOCK="$stock" FC_OUT="$work/adaptive" FC_TOOL_D=$tool_d \
-  FC_STEP_DOWN=$step_down FC_STEP_OVER=$step_over_pct FC_ALLOWANCE=$allowance \
-  FC_FEED=$feed FC_PLUNGE_FEED=$plunge \
-  freecadcmd "$root/scripts/freecad_adaptive.py" >freecad.log 2>&1 || true
-t1=$(now)
-fc_s=$(python3 -c "print('%.2f' % ($t1 - $t0))")
-if ! grep -q '^RESULT cl_moves' freecad.log; then
-  echo "bench-rough: FreeCAD's Adaptive run failed (freecad.log):" >&2
-  grep -v '%)' freecad.log | tail -30 >&2
-  exit 1
-fi
-result() { sed -n "s/^RESULT $1 //p" freecad.log; }
-adaptive_s=$(python3 -c "print('%.2f' % $(result adaptive_s))")
-echo "== FreeCAD $(result freecad_version): $(result levels) Adaptive operations, levels $(result first_level) to $(result last_level) mm; Adaptive's recompute $adaptive_s s of the whole freecadcmd run $fc_s s (import, sections, job, post, read-back included)"
+# FreeCAD: Path Adaptive, one operation per level, on the same stock. Two settings of the
+# allowance: `adaptive` keeps the tool radius off the part's section at z - 0.5 (the allowance
+# under the tool, as rough: the same free region), StockToLeave 0; `adaptive-stl` is the literal
+# reading, the section at z and StockToLeave 0.5 (the allowance only sideways).
+fc_run() {  # NAME ISLAND_ALLOWANCE STOCK_TO_LEAVE
+  local t0 t1
+  t0=$(now)
+  FC_STEP="$surf_step" FC_STOCK="$stock" FC_OUT="$work/$1" FC_TOOL_D=$tool_d \
+    FC_STEP_DOWN=$step_down FC_STEP_OVER=$step_over_pct FC_ALLOWANCE=$allowance \
+    FC_ISLAND_ALLOWANCE=$2 FC_STOCK_TO_LEAVE=$3 FC_FEED=$feed FC_PLUNGE_FEED=$plunge \
+    freecadcmd "$root/scripts/freecad_adaptive.py" >$1.log 2>&1 || true
+  t1=$(now)
+  if ! grep -q '^RESULT cl_moves' $1.log; then
+    echo "bench-rough: FreeCAD's Adaptive run failed ($1.log):" >&2
+    grep -v '%)' $1.log | tail -30 >&2
+    exit 1
+  fi
+  result() { sed -n "s/^RESULT $1 //p" $2.log; }
+  fc_s[$1]=$(python3 -c "print('%.2f' % ($t1 - $t0))")
+  ad_s[$1]=$(python3 -c "print('%.2f' % $(result adaptive_s $1))")
+  echo "== $1: FreeCAD $(result freecad_version $1), $(result levels $1) Adaptive operations," \
+    "levels $(result first_level $1) to $(result last_level $1) mm, $(result regions $1) regions," \
+    "$(result helix_entries $1) helix entries; Adaptive's recompute ${ad_s[$1]} s of the whole" \
+    "freecadcmd run ${fc_s[$1]} s (start, import, sections, job, post, read-back)"
+}
+declare -A fc_s ad_s
+fc_run adaptive $allowance 0
+fc_run adaptive-stl 0 $allowance
 
-# remaining stock: cutsim, when built
-rough_rep="" fc_rep="" keys=""
+# remaining stock: cutsim, when built, on each program with the same tool (a CSV has no tool)
+declare -A rep
+keys=""
 if [ -x "$bin/cutsim" ]; then
-  cut_args=(--stock-box-mm "$stock" --allowance-mm $allowance --tool-diameter-mm $tool_d
-    --corner-radius-mm 0)
-  "$bin/cutsim" "$surf_txt" rough.csv "${cut_args[@]}" --report rough-cutsim.json >rough-cutsim.txt 2>&1
-  "$bin/cutsim" "$surf_txt" adaptive.csv "${cut_args[@]}" --report adaptive-cutsim.json >adaptive-cutsim.txt 2>&1
-  rough_rep=:rough-cutsim.json fc_rep=:adaptive-cutsim.json
+  for p in rough adaptive adaptive-stl; do
+    "$bin/cutsim" "$surf_txt" $p.csv --stock-box-mm "$stock" --allowance-mm $allowance \
+      --tool-diameter-mm $tool_d --corner-radius-mm 0 --report $p-cutsim.json >$p-cutsim.txt 2>&1
+    rep[$p]=:$p-cutsim.json
+  done
   keys=${CUTSIM_KEYS:-left_p95_mm,left_max_mm,into_allowance_mm,below_surface_mm}
 else
   echo "== no $bin/cutsim: the remaining stock is not measured"
@@ -89,5 +102,6 @@ fi
 echo "== cycle time: each feed move at its feed rate, rapids at $rapid mm/min (assumed)"
 python3 "$root/scripts/bench_rough_table.py" --rapid-mm-per-min "$rapid" --plunge-feed $plunge \
   ${keys:+--cutsim-keys "$keys"} \
-  "photomill rough:rough.csv:$rough_s$rough_rep" \
-  "FreeCAD 0.20 Adaptive:adaptive.csv:$fc_s (Adaptive $adaptive_s)$fc_rep"
+  "photomill rough:rough.csv:$rough_s${rep[rough]:-}" \
+  "FreeCAD Adaptive, section at z - 0.5:adaptive.csv:${fc_s[adaptive]} (Adaptive ${ad_s[adaptive]})${rep[adaptive]:-}" \
+  "FreeCAD Adaptive, StockToLeave 0.5:adaptive-stl.csv:${fc_s[adaptive-stl]} (Adaptive ${ad_s[adaptive-stl]})${rep[adaptive-stl]:-}"

@@ -13,6 +13,9 @@
 #   FC_ALLOWANCE  material left on the surface (0.5), vertically as in rough (see below)
 #   FC_STOCK_TO_LEAVE  Adaptive's own StockToLeave, horizontal (0: the allowance is already in
 #                 the level's island, below)
+#   FC_ISLAND_ALLOWANCE  the island is the section at z - this (default FC_ALLOWANCE); 0 with
+#                 FC_STOCK_TO_LEAVE=0.5 is the literal reading of "stock to leave 0.5": the
+#                 allowance only sideways, none under the tool
 #   FC_FEED, FC_PLUNGE_FEED   1000, 300 mm/min (tool controller's HorizFeed, VertFeed)
 #   FC_HELIX_ANGLE  helix ramp angle, degrees (3, as rough's --ramp-angle-deg)
 #   FC_TOLERANCE  Adaptive's Tolerance (0.1, its default)
@@ -149,6 +152,7 @@ def run_freecad():
     step_over = float(env("FC_STEP_OVER", "40"))
     allowance = float(env("FC_ALLOWANCE", "0.5"))
     stock_to_leave = float(env("FC_STOCK_TO_LEAVE", "0"))
+    island_allowance = float(env("FC_ISLAND_ALLOWANCE", str(allowance)))
     feed = float(env("FC_FEED", "1000"))
     plunge = float(env("FC_PLUNGE_FEED", "300"))
     helix_angle = float(env("FC_HELIX_ANGLE", "3"))
@@ -209,7 +213,7 @@ def run_freecad():
     empty_levels = 0
     prev = z1
     for i, z in enumerate(levels):
-        zs = z - allowance + 1e-3  # 1 um: a surface exactly at the allowance does not block
+        zs = z - island_allowance + 1e-3  # 1 um: a surface exactly at the allowance does not block
         wires = solid.slice(V(0, 0, 1), zs)
         island = None
         if wires:
@@ -257,6 +261,13 @@ def run_freecad():
     doc.recompute()
     t_ops = time.time()
 
+    regions = helices = 0
+    for o in ops:
+        for reg in (o.AdaptiveOutputState or []):
+            regions += 1
+            c, p = reg["HelixCenterPoint"], reg["StartPoint"]
+            if math.hypot(c[0] - p[0], c[1] - p[1]) > 0.01:
+                helices += 1
     errors = [o.Label for o in ops if not o.Path.Commands or len(o.Path.Commands) < 3]
     ngc = out + ".ngc"
     linuxcnc_post.export([tc] + ops, ngc,
@@ -273,6 +284,8 @@ def run_freecad():
         "first_level": levels[0],
         "last_level": levels[-1],
         "empty_levels": empty_levels,
+        "regions": regions,
+        "helix_entries": helices,
         "ops_without_path": errors,
         "gcode_lines": sum(1 for _ in open(ngc)),
         "gcode_motion_lines": sum(1 for l in open(ngc) if re.match(r"^(N\d+ )?G[0123]\b", l)),
