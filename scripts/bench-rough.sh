@@ -87,21 +87,34 @@ fc_run adaptive-stl 0 $allowance
 
 # remaining stock: cutsim, when built, on each program with the same tool (a CSV has no tool)
 declare -A rep
-keys=""
+table_args=()
 if [ -x "$bin/cutsim" ]; then
   for p in rough adaptive adaptive-stl; do
     "$bin/cutsim" "$surf_txt" $p.csv --stock-box-mm "$stock" --allowance-mm $allowance \
-      --tool-diameter-mm $tool_d --corner-radius-mm 0 --report $p-cutsim.json >$p-cutsim.txt 2>&1
-    rep[$p]=:$p-cutsim.json
+      --tool-diameter-mm $tool_d --corner-radius-mm 0 --report $p-cutsim.json >$p-cutsim.txt 2>&1 || true
+    [ -s $p-cutsim.json ] && rep[$p]=:$p-cutsim.json
+    sed 's/^/== /' $p-cutsim.txt | grep -v 'cutting the stock'
   done
-  keys=${CUTSIM_KEYS:-left_p95_mm,left_max_mm,into_allowance_mm,below_surface_mm}
+  table_args+=(--cutsim)
 else
-  echo "== no $bin/cutsim: the remaining stock is not measured"
+  echo "== no $bin/cutsim: the remaining stock is not measured by cutsim"
+fi
+# the cross-check (vertical, a rough numpy z-map; not cutsim): needs python3 with numpy
+py=""
+for c in python3 /usr/bin/python3; do
+  if command -v $c >/dev/null && $c -c 'import numpy' 2>/dev/null; then py=$c; break; fi
+done
+if [ -n "$py" ]; then
+  $py "$root/scripts/zmap_crosscheck.py" "$surf_txt" "$stock" $tool_d $allowance 0.2 \
+    rough.csv adaptive.csv adaptive-stl.csv >xcheck.txt
+  table_args+=(--crosscheck xcheck.txt)
+else
+  echo "== no python3 with numpy: no z-map cross-check"
 fi
 
 echo "== cycle time: each feed move at its feed rate, rapids at $rapid mm/min (assumed)"
 python3 "$root/scripts/bench_rough_table.py" --rapid-mm-per-min "$rapid" --plunge-feed $plunge \
-  ${keys:+--cutsim-keys "$keys"} \
+  "${table_args[@]}" \
   "photomill rough:rough.csv:$rough_s${rep[rough]:-}" \
   "FreeCAD Adaptive, section at z - 0.5:adaptive.csv:${fc_s[adaptive]} (Adaptive ${ad_s[adaptive]})${rep[adaptive]:-}" \
   "FreeCAD Adaptive, StockToLeave 0.5:adaptive-stl.csv:${fc_s[adaptive-stl]} (Adaptive ${ad_s[adaptive-stl]})${rep[adaptive-stl]:-}"

@@ -3,10 +3,11 @@
 # `move,x_mm,y_mm,z_mm,i,j,k,feed_mm_per_min`), the CL moves, the feed path length (and the part
 # of it at the plunge feed), the rapid length, and the cycle time: every feed move at its own
 # feed rate plus the rapids at RAPID mm/min (an assumption: 5000 unless --rapid-mm-per-min),
-# tool changes, accelerations and dwells not counted. Remaining stock, when a cutsim --report
-# JSON is given, from that report.
-#   bench_rough_table.py [--rapid-mm-per-min 5000] [--plunge-feed 300] \
-#       NAME:CL.csv:WALL_S[:CUTSIM.json] ...
+# tool changes, accelerations and dwells not counted. Remaining stock, with --cutsim, from each
+# program's cutsim --report JSON; with --crosscheck, the vertical cut into the allowance and
+# below the surface from scripts/zmap_crosscheck.py's table (a cross-check, not cutsim).
+#   bench_rough_table.py [--rapid-mm-per-min 5000] [--plunge-feed 300] [--cutsim] \
+#       [--crosscheck XCHECK.txt] NAME:CL.csv:WALL_S[:CUTSIM.json] ...
 import argparse
 import json
 import math
@@ -49,38 +50,45 @@ def cl_stats(path, rapid_feed, plunge_feed):
 
 
 def cutsim_cols(path):
-    """(left p95, left max, into allowance, below surface) from a cutsim --report JSON; the keys
-    are looked up loosely since the report's schema is cutsim's."""
+    """From a cutsim --report JSON (one program): material left above surface + allowance along
+    the normal (p95, max), the deepest gouge below the surface along the normal, rapids and
+    plunges into material."""
     if not path:
-        return None
+        return ["-"] * 4
     with open(path) as f:
         rep = json.load(f)
-    flat = {}
+    prog = rep["programs"][0]
+    return ["%.3f" % rep["left"]["p95_mm"], "%.3f" % rep["left"]["max_mm"],
+            "%.3f" % rep["gouge"]["max_mm"],
+            "%d / %d" % (prog["rapids_into_material"], prog["plunges"])]
 
-    def walk(o, prefix=""):
-        if isinstance(o, dict):
-            for k, v in o.items():
-                walk(v, prefix + k + ".")
-        elif isinstance(o, (int, float)):
-            flat[prefix[:-1]] = o
-    walk(rep)
-    return flat
+
+def crosscheck_cols(path, csv):
+    """From zmap_crosscheck.py's table: into allowance and below surface (vertical) of `csv`."""
+    if not path:
+        return []
+    with open(path) as f:
+        for line in f:
+            c = [v.strip() for v in line.strip().strip("|").split("|")]
+            if c and c[0] == csv:
+                return [c[3], c[4]]
+    return ["-", "-"]
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--rapid-mm-per-min", type=float, default=5000)
     ap.add_argument("--plunge-feed", type=float, default=300)
-    ap.add_argument("--cutsim-keys", default="",
-                    help="comma-separated report keys for left p95, left max, into allowance, "
-                         "below surface")
+    ap.add_argument("--cutsim", action="store_true", help="the specs carry cutsim reports")
+    ap.add_argument("--crosscheck", default="", help="zmap_crosscheck.py's output")
     ap.add_argument("programs", nargs="+")
     a = ap.parse_args()
-    keys = [k for k in a.cutsim_keys.split(",") if k]
     head = ["program", "CL moves", "feed m", "at plunge feed m", "rapid m", "at feed min",
             "cycle min", "compute s"]
-    if keys:
-        head += ["left p95 mm", "left max mm", "into allowance mm", "below surface mm"]
+    if a.cutsim:
+        head += ["left p95 mm", "left max mm", "gouge mm", "rapids / plunges into material"]
+    if a.crosscheck:
+        head += ["x-check: into allowance mm", "x-check: below surface mm"]
     print("| " + " | ".join(head) + " |")
     print("|" + "---|" * len(head))
     for spec in a.programs:
@@ -89,11 +97,9 @@ def main():
         s = cl_stats(csv, a.rapid_mm_per_min, a.plunge_feed)
         row = [name, "%d" % s["moves"], "%.1f" % s["feed_m"], "%.2f" % s["plunge_m"],
                "%.1f" % s["rapid_m"], "%.1f" % s["feed_min"], "%.1f" % s["cycle_min"], wall]
-        if keys:
-            flat = cutsim_cols(parts[3] if len(parts) > 3 else "")
-            for k in keys:
-                v = flat.get(k) if flat else None
-                row.append("%.3f" % v if v is not None else "-")
+        if a.cutsim:
+            row += cutsim_cols(parts[3] if len(parts) > 3 else "")
+        row += crosscheck_cols(a.crosscheck, csv)
         print("| " + " | ".join(row) + " |")
 
 

@@ -71,7 +71,7 @@ def surface_heights(path, x0, y0, nx, ny, cell):
     sv = int(math.ceil(3 * ext[1] / cell)) + 1
     Bu = basis(ku, pu, nu, np.linspace(ku[pu], ku[nu], su))
     Bv = basis(kv, pv, nv, np.linspace(kv[pv], kv[nv], sv))
-    S = np.einsum("ai,ijc,bj->abc", Bu, P, Bv).reshape(-1, 3)
+    S = np.stack([Bu @ P[:, :, c] @ Bv.T for c in range(3)], axis=-1).reshape(-1, 3)
     ix = np.floor((S[:, 0] - x0) / cell).astype(int)
     iy = np.floor((S[:, 1] - y0) / cell).astype(int)
     ok = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny)
@@ -92,10 +92,18 @@ def read_cl(path):
     return rows.reshape(-1, 3)
 
 
+def pieces(pts, longest):
+    """The moves split into pieces no longer than `longest` in xy (small windows, same cut)."""
+    for a, b in zip(pts[:-1], pts[1:]):
+        n = max(1, int(math.ceil(math.hypot(b[0] - a[0], b[1] - a[1]) / longest)))
+        for k in range(n):
+            yield a + (b - a) * (k / n), a + (b - a) * ((k + 1) / n)
+
+
 def cut(Z, x0, y0, cell, R, pts):
     ny, nx = Z.shape
     r2 = R * R
-    for a, b in zip(pts[:-1], pts[1:]):
+    for a, b in pieces(pts, 2 * R):
         lo = np.minimum(a[:2], b[:2]) - R
         hi = np.maximum(a[:2], b[:2]) + R
         i0 = max(int((lo[0] - x0) / cell), 0)
