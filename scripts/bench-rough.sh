@@ -12,8 +12,9 @@
 # FreeCAD is a peer for this benchmark, never a dependency of photomill: without `freecadcmd` the
 # script says so and exits 0 (Debian 12: apt-get install freecad; 0.20.2). Not a ctest.
 #   scripts/bench-rough.sh [BIN_DIR] [SURFACE.txt] [SURFACE.step] [KEEP_DIR]
-# BIN_DIR holds rough (and cutsim, when built); default build/bin. SURFACE defaults to the demo's
-# out/demo/surface.{txt,step}. KEEP_DIR, when given, keeps the CL files, G-code and reports.
+# BIN_DIR holds rough (and cutsim, when built; CUTSIM=path overrides); default build/bin. SURFACE
+# defaults to the demo's out/demo/surface.{txt,step}. KEEP_DIR, when given, keeps the CL files,
+# G-code, logs and reports.
 set -euo pipefail
 
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -54,7 +55,7 @@ rough_s=$(python3 -c "print('%.2f' % ($t1 - $t0))")
 stock=$(sed -n 's/^rough: stock \([-0-9.]*\),\([-0-9.]*\),\([-0-9.]*\) to \([-0-9.]*\),\([-0-9.]*\),\([-0-9.]*\) mm.*/\1,\2,\3,\4,\5,\6/p' rough.err)
 [ -n "$stock" ] || { echo "bench-rough: no stock line in rough's stderr:" >&2; cat rough.err >&2; exit 1; }
 echo "== stock box: $stock mm"
-echo "== rough: $(grep -m1 'levels from' rough.err | sed 's/^rough: //')"
+echo "== rough: $(grep -m1 ' levels ' rough.err | sed 's/^rough: //')"
 
 # FreeCAD: Path Adaptive, one operation per level, on the same stock. Two settings of the
 # allowance: `adaptive` keeps the tool radius off the part's section at z - 0.5 (the allowance
@@ -88,16 +89,17 @@ fc_run adaptive-stl 0 $allowance
 # remaining stock: cutsim, when built, on each program with the same tool (a CSV has no tool)
 declare -A rep
 table_args=()
-if [ -x "$bin/cutsim" ]; then
+cutsim=${CUTSIM:-$bin/cutsim}
+if [ -x "$cutsim" ]; then
   for p in rough adaptive adaptive-stl; do
-    "$bin/cutsim" "$surf_txt" $p.csv --stock-box-mm "$stock" --allowance-mm $allowance \
+    "$cutsim" "$surf_txt" $p.csv --stock-box-mm "$stock" --allowance-mm $allowance \
       --tool-diameter-mm $tool_d --corner-radius-mm 0 --report $p-cutsim.json >$p-cutsim.txt 2>&1 || true
     [ -s $p-cutsim.json ] && rep[$p]=:$p-cutsim.json
     sed 's/^/== /' $p-cutsim.txt | grep -v 'cutting the stock'
   done
   table_args+=(--cutsim)
 else
-  echo "== no $bin/cutsim: the remaining stock is not measured by cutsim"
+  echo "== no $cutsim: the remaining stock is not measured by cutsim"
 fi
 # the cross-check (vertical, a rough numpy z-map; not cutsim): needs python3 with numpy
 py=""
