@@ -7,7 +7,11 @@
 # FreeCAD's LinuxCNC post and read back into CL CSV. Both CL CSVs are measured by
 # scripts/bench_rough_table.py: CL moves, feed and rapid lengths, cycle time with the rapids at
 # RAPID_MM_PER_MIN (5000, an assumption), the wall time of the program that makes the path; and,
-# when the build has `cutsim`, what is left of the stock (cutsim on each CL with the same tool).
+# when the build has `cutsim`, what is left of the stock (cutsim on each CL with the same tool);
+# with python3 + numpy, the vertical cut into the allowance and below the surface from
+# scripts/zmap_crosscheck.py (a rough cross-check, not cutsim: cutsim reports no such figure).
+# FreeCAD runs twice: the allowance under the tool as rough has it, and StockToLeave 0.5 alone.
+# About 80 s on 2 cores.
 #
 # FreeCAD is a peer for this benchmark, never a dependency of photomill: without `freecadcmd` the
 # script says so and exits 0 (Debian 12: apt-get install freecad; 0.20.2). Not a ctest.
