@@ -77,7 +77,7 @@ INSTANTIATE_TEST_SUITE_P(
         CliCase{"step_down_negative", {"--step-down-mm", "-2", "-"}, 2, "", "--step-down-mm"},
         CliCase{"step_over", quick({"--step-over-mm", "1.5", "-"}), 0, "GOTO/", "step-over 1.500 mm"},
         CliCase{"step_over_too_big", quick({"--step-over-mm", "4", "-"}), 2, "", "--step-over-mm"},
-        CliCase{"allowance", quick({"--allowance-mm", "1", "-"}), 0, "GOTO/", "to 1.000 mm"},
+        CliCase{"allowance", quick({"--allowance-mm", "1", "-"}), 0, "GOTO/", "to 1.0"},
         CliCase{"allowance_nan", quick({"--allowance-mm", "nan", "-"}), 2, "", "--allowance-mm"},
         CliCase{"stock_box", quick({"--stock-box-mm", "-15,-15,0,15,15,9", "-"}), 0, "GOTO/",
                 "stock -15.000,-15.000,0.000 to 15.000,15.000,9.000 mm"},

@@ -693,7 +693,10 @@ RoughingResult generate_roughing(const BSplineSurface& surface, const RoughingOp
     if (z <= tmin + 1e-6) break;
     levels.push_back(z);
   }
-  if (tmin < stock.max_mm.z() - 1e-6) levels.push_back(tmin);
+  // The last level: the lowest tip height, or up to --flat-tol-mm above it, so that the nodes
+  // within that tolerance of the lowest (a floor that is not quite level) are cut there too.
+  const double bottom_level = std::min(tmin + o.flat_tol_mm, levels.empty() ? kInf : levels.back() - 0.01);
+  if (bottom_level < stock.max_mm.z() - 1e-6) levels.push_back(std::max(tmin, bottom_level));
   std::vector<double> flats;
   if (o.flat_tol_mm > 0) {
     constexpr double kFlatAreaFraction = 0.02;

@@ -13,7 +13,8 @@
 //       T(p) = max over nodes q with |q - p| <= R of  H(q) + allowance - f(|q - p|),
 //     with the end mill's profile f(rho) = 0 for rho <= R - r_c and
 //     f(rho) = r_c - sqrt(r_c^2 - (rho - R + r_c)^2) on the corner (r_c = 0: flat end mill).
-//  3. Levels z_k = stock top - k step-down down to min T, the last level at min T, plus a level
+//  3. Levels z_k = stock top - k step-down down to min T, the last level at min T + `flat_tol_mm`
+//     (so that a floor not quite level is cut at it too; below the level above it), plus a level
 //     at the top of every flat: nodes whose T is within a 1-degree slope of its four
 //     neighbours', grouped in runs of T within `flat_tol_mm`, a run holding at least 2 % of the
 //     stock's nodes (a plate, a terrace), so flats are cut to the allowance instead of keeping a
