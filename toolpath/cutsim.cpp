@@ -28,14 +28,6 @@ std::string f3(double v) {
   return b;
 }
 
-// The cutter's profile above its tip at distance rho from its axis.
-double lift(const Cutter& c, double rho) {
-  const double flat = c.radius_mm - c.corner_radius_mm;
-  if (rho <= flat) return 0;
-  const double t = std::min(rho - flat, c.corner_radius_mm);
-  return c.corner_radius_mm - std::sqrt(std::max(0.0, c.corner_radius_mm * c.corner_radius_mm - t * t));
-}
-
 // One move: lowers the material along it; returns the deepest it cut (0: none) and where.
 double cut_move(HeightGrid& m, const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Cutter& c, Eigen::Vector2d& at) {
   const double R = c.radius_mm;
@@ -74,7 +66,7 @@ std::vector<double> closing(const HeightGrid& part, const Cutter& c, int threads
   for (long dj = -r; dj <= r; ++dj) {
     for (long di = -r; di <= r; ++di) {
       const double rho = part.cell_mm * std::hypot(static_cast<double>(di), static_cast<double>(dj));
-      if (rho <= c.radius_mm) disk.push_back({di, dj, lift(c, rho)});
+      if (rho <= c.radius_mm) disk.push_back({di, dj, cutter_lift(c, rho)});
     }
   }
   const long nx = part.nx, ny = part.ny;

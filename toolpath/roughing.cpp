@@ -39,12 +39,7 @@ struct Grid {
 };
 
 // The end mill's profile above its tip at distance rho from its axis (rho <= R).
-double profile(double rho, double R, double rc) {
-  const double flat = R - rc;
-  if (rho <= flat) return 0;
-  const double t = std::min(rho - flat, rc);
-  return rc - std::sqrt(std::max(0.0, rc * rc - t * t));
-}
+double profile(double rho, double R, double rc) { return cutter_lift(Cutter{R, rc}, rho); }
 
 // Step 1: the part's height at the nodes, the largest of each node and its 8 neighbours plus a
 // curvature margin; off the surface the stock's bottom. A peak between nodes lies within

@@ -578,6 +578,13 @@ std::pair<Eigen::Vector2d, Eigen::Vector2d> surface_xy_extent(const BSplineSurfa
   return {inv.lo(), inv.hi()};
 }
 
+double cutter_lift(const Cutter& c, double rho) {
+  const double rc = c.corner_radius_mm, flat = c.radius_mm - rc;
+  if (rho <= flat) return 0;
+  const double t = std::min(rho - flat, rc);
+  return rc - std::sqrt(std::max(0.0, rc * rc - t * t));
+}
+
 double swept_cutter_bottom(const Eigen::Vector3d& A, const Eigen::Vector3d& B, const Cutter& c, const Eigen::Vector2d& xy) {
   const double R = c.radius_mm, rc = c.corner_radius_mm;
   if (rc >= R) {
@@ -586,13 +593,7 @@ double swept_cutter_bottom(const Eigen::Vector3d& A, const Eigen::Vector3d& B, c
   }
   const Eigen::Vector2d b = B.head<2>() - A.head<2>();
   const double l = b.norm();
-  // The profile above the tip at distance rho from the axis.
-  const auto lift = [&](double rho) {
-    const double flat = R - rc;
-    if (rho <= flat) return 0.0;
-    const double t = std::min(rho - flat, rc);
-    return rc - std::sqrt(std::max(0.0, rc * rc - t * t));
-  };
+  const auto lift = [&](double rho) { return cutter_lift(c, rho); };
   if (l < 1e-12) {
     const double rho = (xy - A.head<2>()).norm();
     return rho > R ? kInf : std::min(A.z(), B.z()) + lift(rho);

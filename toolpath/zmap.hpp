@@ -83,6 +83,10 @@ struct Cutter {
   double corner_radius_mm = 3;
 };
 
+// The cutter's profile above its tip at distance rho (<= R) from its axis:
+//   f(rho) = 0 for rho <= R - r_c,  r_c - sqrt(r_c^2 - (rho - R + r_c)^2) beyond.
+double cutter_lift(const Cutter& cutter, double rho);
+
 // The lowest point of the cutter on the vertical line through xy while its tip moves straight
 // from tip_a to tip_b (+inf if it never passes over xy). With the cutter's profile above its tip
 // f(rho) = 0 for rho <= R - r_c, r_c - sqrt(r_c^2 - (rho - R + r_c)^2) beyond, the travel sigma
