@@ -55,6 +55,13 @@ double cut_move(HeightGrid& m, const Eigen::Vector3d& a, const Eigen::Vector3d& 
   return deepest;
 }
 
+// The material's top at the node nearest xy (-inf outside the grid).
+double material_at(const HeightGrid& m, const Eigen::Vector2d& xy) {
+  const long i = std::lround((xy.x() - m.lo.x()) / m.cell_mm), j = std::lround((xy.y() - m.lo.y()) / m.cell_mm);
+  if (i < 0 || j < 0 || i >= m.nx || j >= m.ny) return -kInf;
+  return m.z[static_cast<std::size_t>(j * m.nx + i)];
+}
+
 // The surface closed by the cutter (cutsim.hpp): E(x) = min_p max_q H(q) - f(|q-p|) + f(|x-p|).
 std::vector<double> closing(const HeightGrid& part, const Cutter& c, int threads) {
   const long r = static_cast<long>(std::floor(c.radius_mm / part.cell_mm));
@@ -175,10 +182,14 @@ CutsimResult simulate_cutting(const BSplineSurface& surface, const std::vector<C
         f.feed_length_mm += len;
         if (mv.feed_mm_per_min > 0) f.feed_time_min += len / mv.feed_mm_per_min;
       }
+      // A plunge goes down steeply into material under the cutter's own axis (end cutting): the
+      // material at the node nearest its end was above the end's tip before the move.
+      const bool steep = !rapid && a.z() > b.z() && (b.head<2>() - a.head<2>()).norm() <= (a.z() - b.z()) * cot + 1e-9;
+      const double under = steep ? material_at(m, b.head<2>()) : -kInf;
       Eigen::Vector2d at = Eigen::Vector2d::Zero();
       const double cut = cut_move(m, a, b, p.cutter, at);
       if (cut <= o.tolerance_mm) continue;
-      const bool plunge = !rapid && a.z() > b.z() && (b.head<2>() - a.head<2>()).norm() <= (a.z() - b.z()) * cot + 1e-9;
+      const bool plunge = steep && under > b.z() + o.tolerance_mm;
       if (!rapid && !plunge) continue;
       (rapid ? f.rapids_into_material : f.plunges) += 1;
       if (f.first_fault.empty()) {

@@ -54,7 +54,7 @@ struct CutsimProgramFigures {
   double feed_length_mm = 0, rapid_length_mm = 0;
   double feed_time_min = 0;        // sum of feed length / feed
   std::size_t rapids_into_material = 0;
-  std::size_t plunges = 0;         // feed moves steeper than the plunge angle that removed material
+  std::size_t plunges = 0;         // feed moves steeper than the plunge angle into material under the axis
   std::string first_fault;         // the first rapid or plunge, described
 };
 

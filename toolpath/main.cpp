@@ -45,6 +45,7 @@ int main(int argc, char** argv) {
         app.add_option("--safe-z-mm", o.safe_z_mm, "Rapid plane, tool tip (default: top of surface and path + --retract-mm)");
         app.add_option("--retract-mm", o.retract_mm, "Safe plane above the highest point")->capture_default_str();
         app.add_option("--clearance-mm", o.clearance_mm, "Rapid down to this height above a pass start, then feed")->capture_default_str();
+        app.add_option("--ramp-angle-deg", o.ramp_angle_deg, "Enter a pass by a ramp back along it this steep, [0, 45] (0: straight down)")->capture_default_str();
         app.add_option("--drop-sample-mm", o.drop_sample_mm, "Drop-cutter surface sample spacing")->capture_default_str();
         app.add_option("--side-sample-mm", o.side_sample_mm, "Spacing along a pass of the side-step samples")->capture_default_str();
         app.add_option("--threads", o.threads, "Worker threads (0 = all cores)")->capture_default_str();

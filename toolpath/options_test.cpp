@@ -165,6 +165,21 @@ INSTANTIATE_TEST_SUITE_P(
                      EXPECT_GT(plunges, 0);
                    }},
         bad("clearance_mm_negative", tp({"--clearance-mm", "-1"}), "--clearance-mm"),
+        OptionCase{"ramp_angle_deg", tp({"--ramp-angle-deg", "5", "--clearance-mm", "2", "--format", "csv"}), 0, "",
+                   [](const Outcome& r) {
+                     // No pass is entered straight down: after each rapid down, the feeds come
+                     // back along the pass no steeper than 5 degrees relative to it, and reach it.
+                     const auto rows = csv_rows(r.r.out);
+                     int entries = 0;
+                     for (std::size_t i = 1; i < rows.size(); ++i) {
+                       const Row &a = rows[i - 1], &b = rows[i];
+                       if (a.move != "rapid" || b.move != "feed") continue;
+                       EXPECT_FALSE(a.x == b.x && a.y == b.y) << "a straight-down entry at row " << i;
+                       ++entries;
+                     }
+                     EXPECT_GT(entries, 0);
+                   }},
+        bad("ramp_angle_deg_steep", tp({"--ramp-angle-deg", "50"}), "--ramp-angle-deg"),
         OptionCase{"drop_sample_mm", tp({"--drop-sample-mm", "0.25"}), 0, "",
                    [](const Outcome& r) { EXPECT_DOUBLE_EQ(json_number(r.report, "drop_sample_mm", "options"), 0.25); }},
         bad("drop_sample_mm_zero", tp({"--drop-sample-mm", "0"}), "--drop-sample-mm"),

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <limits>
 #include <sstream>
+#include <utility>
+#include <vector>
 
 #include "formats/error.hpp"
 #include "toolpath/forward_step.hpp"
@@ -103,6 +105,7 @@ void validate(const ToolpathOptions& o) {
   require(!o.safe_z_mm || std::isfinite(*o.safe_z_mm), "--safe-z-mm must be a finite number");
   require(finite_nonneg(o.retract_mm), "--retract-mm must be >= 0");
   require(finite_nonneg(o.clearance_mm), "--clearance-mm must be >= 0");
+  require(o.ramp_angle_deg >= 0 && o.ramp_angle_deg <= 45, "--ramp-angle-deg must be in [0, 45] (0: straight down)");
   require(finite_pos(o.drop_sample_mm), "--drop-sample-mm must be > 0");
   require(finite_pos(o.side_sample_mm), "--side-sample-mm must be > 0");
   require(o.threads >= 0, "--threads must be >= 0");
@@ -298,14 +301,46 @@ void write_cl_moves(const DropCutter& drop, const ToolpathOptions& o, ToolpathRe
     cl.moves.push_back({ClMove::Kind::Rapid, p, std::nullopt, 0.0});
   };
   const auto feed = [&](const Eigen::Vector3d& p, double f) { cl.moves.push_back({ClMove::Kind::Feed, p, std::nullopt, f}); };
-  const auto approach = [&](const Eigen::Vector3d& p) {
+  // Onto the start of a pass: straight down from the clearance height, or (ramp_angle_deg > 0)
+  // a lead-in ramp: rapid down to the clearance height above the point of the pass a
+  // horizontal length L = clearance / tan(angle) along it, then back along the pass to its start
+  // at the pass's own CL points lifted by clearance * s / L (s: horizontal length from the
+  // start), so the tool comes down at the ramp angle relative to the pass and never below it; the
+  // pass then cuts that stretch at full depth. A pass shorter than L is ramped over its length.
+  const auto approach = [&](const std::vector<CutterLocation>& pts) {
+    const Eigen::Vector3d& p = pts.front().tip;
+    if (o.ramp_angle_deg > 0 && pts.size() > 1 && o.clearance_mm > 0) {
+      const double L = o.clearance_mm / std::tan(o.ramp_angle_deg * 3.14159265358979323846 / 180);
+      std::vector<std::pair<Eigen::Vector3d, double>> lead{{p, 0.0}};  // (tip, s)
+      for (std::size_t k = 1; k < pts.size() && lead.back().second < L; ++k) {
+        const Eigen::Vector3d& a = pts[k - 1].tip;
+        const Eigen::Vector3d& b = pts[k].tip;
+        const double l = (b - a).head<2>().norm();
+        const double s0 = lead.back().second;
+        if (s0 + l > L && l > 0) {
+          lead.push_back({a + (b - a) * ((L - s0) / l), L});
+        } else {
+          lead.push_back({b, s0 + l});
+        }
+      }
+      const double span = lead.back().second;
+      if (span > 0) {
+        const Eigen::Vector3d& far = lead.back().first;
+        rapid({far.x(), far.y(), safe});
+        if (far.z() + o.clearance_mm < safe) rapid({far.x(), far.y(), far.z() + o.clearance_mm});
+        for (std::size_t k = lead.size() - 1; k-- > 0;) {
+          feed(lead[k].first + Eigen::Vector3d(0, 0, o.clearance_mm * lead[k].second / span), o.plunge_feed_mm_per_min);
+        }
+        return;
+      }
+    }
     rapid({p.x(), p.y(), safe});
     if (p.z() + o.clearance_mm < safe) rapid({p.x(), p.y(), p.z() + o.clearance_mm});
     feed(p, o.plunge_feed_mm_per_min);
   };
   for (std::size_t s = 0; s < result.segments.size(); ++s) {
     const auto& pts = result.segments[s].points;
-    if (s == 0) approach(pts.front().tip);
+    if (s == 0) approach(pts);
     for (std::size_t k = 1; k < pts.size(); ++k) feed(pts[k].tip, o.feed_mm_per_min);
     if (s + 1 == result.segments.size()) break;
     const auto& next = result.segments[s + 1];
@@ -317,7 +352,7 @@ void write_cl_moves(const DropCutter& drop, const ToolpathOptions& o, ToolpathRe
     } else {
       ++st.retracts;
       rapid({a.x(), a.y(), safe});
-      approach(b);
+      approach(next.points);
     }
   }
   const Eigen::Vector3d last = cl.moves.back().tip_mm;

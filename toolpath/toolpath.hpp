@@ -36,6 +36,7 @@ struct ToolpathOptions {
   std::optional<double> safe_z_mm;   // rapid plane (tool tip, mm); unset: top + retract_mm
   double retract_mm = 5;             // safe plane above the highest of surface and path
   double clearance_mm = 1;           // rapid down to this height above a pass start, then feed
+  double ramp_angle_deg = 0;         // > 0: enter a pass by a ramp along it this steep (0: straight down)
   double drop_sample_mm = 0.5;       // drop-cutter sample spacing on the surface
   double side_sample_mm = 1;         // spacing of the side-step samples along a pass
   int threads = 0;                   // 0 = all cores
