@@ -238,7 +238,14 @@ std::vector<std::string> cutsim_summary(const CutsimResult& r) {
                     " min at feed), rapid " + f3(f.rapid_length_mm) + " mm, " + std::to_string(f.rapids_into_material) +
                     " rapids and " + std::to_string(f.plunges) + " plunges into material");
   }
-  const auto at = [](const Eigen::Vector3d& p) { return "(" + f3(p.x()) + ", " + f3(p.y()) + ")"; };
+  const auto at = [](const Eigen::Vector3d& p) {
+    std::string s(1, '(');  // built by appending: GCC 12's -Wrestrict misfires on "(" + std::string&&
+    s += f3(p.x());
+    s += ", ";
+    s += f3(p.y());
+    s += ')';
+    return s;
+  };
   lines.push_back(f3(r.cell_mm) + " mm z-map, " + std::to_string(r.nodes) + " nodes over the surface: material left p95 " +
                   f3(r.p95_left_mm) + ", max " + f3(r.max_left_mm) + " mm at " + at(r.max_left_at) + "; deepest gouge " +
                   f3(r.max_gouge_mm) + " mm at " + at(r.max_gouge_at));
