@@ -85,6 +85,7 @@ INSTANTIATE_TEST_SUITE_P(
         CliCase{"stock_box_not_a_number", quick({"--stock-box-mm", "-15,-15,0,15,1x5,9", "-"}), 2, "", "'1x5' is not a number"},
         CliCase{"stock_box_inverted", quick({"--stock-box-mm", "15,-15,0,-15,15,9", "-"}), 2, "", "--stock-box-mm"},
         CliCase{"stock_box_beside", quick({"--stock-box-mm", "100,100,0,120,120,9", "-"}), 1, "", "does not overlap"},
+        CliCase{"stock_below_the_part", quick({"--stock-box-mm", "-15,-15,0,15,15,0.3", "-"}), 1, "", "nothing to cut"},
         CliCase{"stock_margin", quick({"--stock-margin-mm", "0", "-"}), 0, "GOTO/", "to 20.000,20.000,"},
         CliCase{"conventional", quick({"--direction", "conventional", "-"}), 0, "GOTO/", ""},
         CliCase{"bad_direction", quick({"--direction", "up", "-"}), 2, "", "--direction"},

@@ -739,6 +739,12 @@ RoughingResult generate_roughing(const BSplineSurface& surface, const RoughingOp
     w.retract();
   }
   w.retract();
+  if (st.loops == 0) {
+    throw GeometryError(levels.empty() ? "roughing: nothing to cut: the stock's top (" + mm(stock.max_mm.z()) +
+                                             " mm) is not above the surface + allowance anywhere inside it (lowest " + mm(tmin) + " mm)"
+                                       : "roughing: no loop could be entered (" + std::to_string(st.skipped_loops) +
+                                             " too narrow for a ramp or a helix): no program");
+  }
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }
