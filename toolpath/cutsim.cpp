@@ -28,33 +28,6 @@ std::string f3(double v) {
   return b;
 }
 
-// One move: lowers the material along it; returns the deepest it cut (0: none) and where.
-double cut_move(HeightGrid& m, const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Cutter& c, Eigen::Vector2d& at) {
-  const double R = c.radius_mm;
-  const double zlow = std::min(a.z(), b.z());
-  const double ylo = std::min(a.y(), b.y()) - R, yhi = std::max(a.y(), b.y()) + R;
-  const long j0 = std::max(0L, static_cast<long>(std::ceil((ylo - m.lo.y()) / m.cell_mm)));
-  const long j1 = std::min(m.ny - 1, static_cast<long>(std::floor((yhi - m.lo.y()) / m.cell_mm)));
-  double deepest = 0;
-  for (long j = j0; j <= j1; ++j) {
-    const double y = m.lo.y() + j * m.cell_mm;
-    double x0, x1;
-    if (!capsule_row(a.head<2>(), b.head<2>(), R, y, x0, x1)) continue;
-    const long i0 = std::max(0L, static_cast<long>(std::ceil((x0 - m.lo.x()) / m.cell_mm)));
-    const long i1 = std::min(m.nx - 1, static_cast<long>(std::floor((x1 - m.lo.x()) / m.cell_mm)));
-    double* row = m.z.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(m.nx);
-    for (long i = i0; i <= i1; ++i) {
-      if (zlow >= row[i]) continue;
-      const double z = swept_cutter_bottom(a, b, c, {m.lo.x() + i * m.cell_mm, y});
-      if (z < row[i]) {
-        if (row[i] - z > deepest) deepest = row[i] - z, at = {m.lo.x() + i * m.cell_mm, y};
-        row[i] = z;
-      }
-    }
-  }
-  return deepest;
-}
-
 // The material's top at the node nearest xy (-inf outside the grid).
 double material_at(const HeightGrid& m, const Eigen::Vector2d& xy) {
   const long i = std::lround((xy.x() - m.lo.x()) / m.cell_mm), j = std::lround((xy.y() - m.lo.y()) / m.cell_mm);
@@ -187,7 +160,7 @@ CutsimResult simulate_cutting(const BSplineSurface& surface, const std::vector<C
       const bool steep = !rapid && a.z() > b.z() && (b.head<2>() - a.head<2>()).norm() <= (a.z() - b.z()) * cot + 1e-9;
       const double under = steep ? material_at(m, b.head<2>()) : -kInf;
       Eigen::Vector2d at = Eigen::Vector2d::Zero();
-      const double cut = cut_move(m, a, b, p.cutter, at);
+      const double cut = cut_move_rows(m, a, b, p.cutter, 0, m.ny - 1, &at);
       if (cut <= o.tolerance_mm) continue;
       const bool plunge = steep && under > b.z() + o.tolerance_mm;
       if (!rapid && !plunge) continue;

@@ -631,11 +631,40 @@ double swept_cutter_bottom(const Eigen::Vector3d& A, const Eigen::Vector3d& B, c
   return std::min({f1, f2, at(s0), at(s1)});
 }
 
+double cut_move_rows(HeightGrid& m, const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Cutter& c, long j_first, long j_last,
+                     Eigen::Vector2d* deepest_at) {
+  const double R = c.radius_mm;
+  const double zlow = std::min(a.z(), b.z());
+  const double ylo = std::min(a.y(), b.y()) - R, yhi = std::max(a.y(), b.y()) + R;
+  const long j0 = std::max({0L, j_first, static_cast<long>(std::ceil((ylo - m.lo.y()) / m.cell_mm))});
+  const long j1 = std::min({m.ny - 1, j_last, static_cast<long>(std::floor((yhi - m.lo.y()) / m.cell_mm))});
+  double deepest = 0;
+  for (long j = j0; j <= j1; ++j) {
+    const double y = m.lo.y() + j * m.cell_mm;
+    double x0, x1;
+    if (!capsule_row(a.head<2>(), b.head<2>(), R, y, x0, x1)) continue;
+    const long i0 = std::max(0L, static_cast<long>(std::ceil((x0 - m.lo.x()) / m.cell_mm)));
+    const long i1 = std::min(m.nx - 1, static_cast<long>(std::floor((x1 - m.lo.x()) / m.cell_mm)));
+    double* row = m.z.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(m.nx);
+    for (long i = i0; i <= i1; ++i) {
+      if (zlow >= row[i]) continue;  // this move cannot reach below the material here
+      const double z = swept_cutter_bottom(a, b, c, {m.lo.x() + i * m.cell_mm, y});
+      if (z < row[i]) {
+        if (row[i] - z > deepest) {
+          deepest = row[i] - z;
+          if (deepest_at) *deepest_at = {m.lo.x() + i * m.cell_mm, y};
+        }
+        row[i] = z;
+      }
+    }
+  }
+  return deepest;
+}
+
 void cut_material(HeightGrid& mat, const ClData& cl, const Cutter& c, int threads) {
   if (!(c.radius_mm > 0) || !(c.corner_radius_mm >= 0)) throw UsageError("cutter radius must be > 0");
   Grid g;
   g.lo = mat.lo, g.cell = mat.cell_mm, g.nx = mat.nx, g.ny = mat.ny;
-  g.hi = g.node_xy(g.nx - 1, g.ny - 1);
   const double R = c.radius_mm;
   constexpr long kRowsPerBlock = 8;
   const std::size_t blocks = static_cast<std::size_t>((g.ny + kRowsPerBlock - 1) / kRowsPerBlock);
@@ -651,22 +680,7 @@ void cut_material(HeightGrid& mat, const ClData& cl, const Cutter& c, int thread
   geometry::parallel_for(blocks, threads, [&](std::size_t bk) {
     const long jb0 = static_cast<long>(bk) * kRowsPerBlock, jb1 = std::min(g.ny - 1, jb0 + kRowsPerBlock - 1);
     for (int k : block_moves[bk]) {
-      const Eigen::Vector3d& a = cl.moves[static_cast<std::size_t>(k) - 1].tip_mm;
-      const Eigen::Vector3d& b = cl.moves[static_cast<std::size_t>(k)].tip_mm;
-      const double zlow = std::min(a.z(), b.z());
-      for (long j = jb0; j <= jb1; ++j) {
-        const double y = g.lo.y() + j * g.cell;
-        double x0, x1;
-        if (!capsule_row(a.head<2>(), b.head<2>(), R, y, x0, x1)) continue;
-        const long i0 = std::max(0L, static_cast<long>(std::ceil((x0 - g.lo.x()) / g.cell)));
-        const long i1 = std::min(g.nx - 1, static_cast<long>(std::floor((x1 - g.lo.x()) / g.cell)));
-        double* row = mat.z.data() + static_cast<std::size_t>(j) * g.nx;
-        for (long i = i0; i <= i1; ++i) {
-          if (zlow >= row[i]) continue;  // this move cannot reach below the material here
-          const double z = swept_cutter_bottom(a, b, c, {g.lo.x() + i * g.cell, y});
-          if (z < row[i]) row[i] = z;
-        }
-      }
+      cut_move_rows(mat, cl.moves[static_cast<std::size_t>(k) - 1].tip_mm, cl.moves[static_cast<std::size_t>(k)].tip_mm, c, jb0, jb1);
     }
   });
 }

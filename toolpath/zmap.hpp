@@ -98,6 +98,11 @@ double cutter_lift(const Cutter& cutter, double rho);
 double swept_cutter_bottom(const Eigen::Vector3d& tip_a, const Eigen::Vector3d& tip_b, const Cutter& cutter,
                            const Eigen::Vector2d& xy);
 
+// One move: lowers material.z on the rows j_first..j_last (cut to the move's reach) wherever the
+// cutter passes; returns the deepest it cut there (0: none) and, with deepest_at, where.
+double cut_move_rows(HeightGrid& material, const Eigen::Vector3d& tip_a, const Eigen::Vector3d& tip_b, const Cutter& cutter,
+                     long j_first, long j_last, Eigen::Vector2d* deepest_at = nullptr);
+
 // Lowers material.z (the material's top at the grid's nodes) wherever the cutter passes along
 // the CL moves (rapids included). Rows in blocks, in parallel.
 void cut_material(HeightGrid& material, const ClData& cl, const Cutter& cutter, int threads);
