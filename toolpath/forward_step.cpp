@@ -204,7 +204,9 @@ MarchResult march_interval(const IsoCurve& curve, double t0, double t1, const Fo
       // Degenerate only if neither the contact nor the ball would move by the minimum step (at a
       // pole the contact stays put while the ball rolls around it).
       const double moved = std::max((cln.cc - cl.cc).norm(), centre_step) * std::max(ratio, 0.1);
-      if (moved < o.min_step_mm) {
+      // A step too small to change t in double precision (the ball jumps while the contact
+      // cannot move: a normal that turns over within rounding) is the same failure.
+      if (moved < o.min_step_mm || t + dir * dt == t) {
         std::ostringstream msg;
         msg.precision(9);
         const Eigen::Vector2d uv = curve.uv(t);

@@ -60,7 +60,6 @@ PassFrame pass_frame(const BSplineSurface& surface, PassDirection direction, dou
                           " (its derivatives are parallel or zero there), so the tool position is undefined");
     }
   }
-  if (n.z() < 0) n = -n;
   PassFrame f;
   f.uv = {u, v};
   f.p = d.p;
@@ -71,6 +70,68 @@ PassFrame pass_frame(const BSplineSurface& surface, PassDirection direction, dou
     f.st = d.sv, f.sw = d.su, f.stt = d.svv, f.stw = d.suv, f.sww = d.suu;
   }
   return f;
+}
+
+// Even-odd point-in-polygon test (a ray towards +u).
+bool inside_uv_polygon(const std::vector<Eigen::Vector2d>& poly, const Eigen::Vector2d& p) {
+  bool inside = false;
+  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
+    const Eigen::Vector2d& a = poly[i];
+    const Eigen::Vector2d& b = poly[j];
+    if ((a.y() > p.y()) != (b.y() > p.y()) && p.x() < a.x() + (p.y() - a.y()) * (b.x() - a.x()) / (b.y() - a.y())) {
+      inside = !inside;
+    }
+  }
+  return inside;
+}
+
+SurfaceFacing surface_facing(const BSplineSurface& surface) {
+  // With dA = |S_u x S_v| du dv and n_z the z component of S_u x S_v / |S_u x S_v|:
+  //   area = sum dA,  up = sum max(n_z, 0) dA,  down = sum max(-n_z, 0) dA
+  // (up - down is the z component of the vector area, the signed projection onto the xy plane).
+  // Midpoint rule on a kGrid x kGrid grid of the domain, cells inside the boundary polygon only.
+  constexpr int kGrid = 48;
+  const auto [u0, u1] = domain_u(surface);
+  const auto [v0, v1] = domain_v(surface);
+  const double du = (u1 - u0) / kGrid, dv = (v1 - v0) / kGrid;
+  SurfaceFacing out;
+  for (int i = 0; i < kGrid; ++i) {
+    for (int j = 0; j < kGrid; ++j) {
+      const Eigen::Vector2d uv(u0 + (i + 0.5) * du, v0 + (j + 0.5) * dv);
+      if (!surface.boundary_uv.empty() && !inside_uv_polygon(surface.boundary_uv, uv)) continue;
+      const SurfaceDerivatives d = surface_derivatives(surface, uv.x(), uv.y());
+      const Eigen::Vector3d c = d.su.cross(d.sv) * (du * dv);
+      out.area_mm2 += c.norm();
+      (c.z() >= 0 ? out.up_mm2 : out.down_mm2) += std::abs(c.z());
+    }
+  }
+  return out;
+}
+
+BSplineSurface mirrored_u(const BSplineSurface& s) {
+  // u' = u0 + u1 - u: knots reflected and reversed, pole rows reversed; the boundary polygon
+  // reflected and reversed so that it stays counter-clockwise. S'(u', v) = S(u, v), and
+  // S'_u' x S'_v = -(S_u x S_v).
+  BSplineSurface m = s;
+  const auto [u0, u1] = domain_u(s);
+  const std::size_t nk = s.knots_u.size();
+  for (std::size_t k = 0; k < nk; ++k) m.knots_u[k] = u0 + u1 - s.knots_u[nk - 1 - k];
+  for (int i = 0; i < s.num_poles_u; ++i) {
+    for (int j = 0; j < s.num_poles_v; ++j) {
+      const std::size_t to = static_cast<std::size_t>(i) * s.num_poles_v + j;
+      const std::size_t from = static_cast<std::size_t>(s.num_poles_u - 1 - i) * s.num_poles_v + j;
+      m.poles_mm[to] = s.poles_mm[from];
+      if (s.rational()) m.weights[to] = s.weights[from];
+    }
+  }
+  m.boundary_uv.clear();
+  for (auto it = s.boundary_uv.rbegin(); it != s.boundary_uv.rend(); ++it) m.boundary_uv.push_back({u0 + u1 - it->x(), it->y()});
+  return m;
+}
+
+BSplineSurface upward_oriented(const BSplineSurface& surface) {
+  const SurfaceFacing f = surface_facing(surface);
+  return f.up_mm2 < f.down_mm2 ? mirrored_u(surface) : surface;
 }
 
 std::pair<double, double> along_domain(const BSplineSurface& surface, PassDirection direction) {

@@ -31,7 +31,11 @@ struct PassFrame {
   Eigen::Vector3d p;         // S, world mm
   Eigen::Vector3d st, sw;    // dS/dt, dS/dw, mm per parameter unit
   Eigen::Vector3d stt, stw, sww;
-  Eigen::Vector3d normal;    // unit normal oriented upwards (n_z >= 0); zero where singular
+  // Unit normal S_u x S_v / |S_u x S_v| (S_t x S_w for V passes is its negative; the normal is
+  // always that of (u, v)). It points up wherever the surface does not overhang, once the
+  // surface is upward_oriented(); where it points down (n_z < 0, an undercut) a 3-axis ball
+  // cannot touch the surface and the drop cutter lifts it.
+  Eigen::Vector3d normal;
 };
 
 // Step 1: the iso-parametric curve w = const of `surface`, as a function of t. Holding t fixed
@@ -55,10 +59,30 @@ private:
   double w_;
 };
 
-// Derivatives at (u, v) in pass notation; the normal is su x sv flipped to point upwards. Where
+// Derivatives at (u, v) in pass notation; the normal is su x sv, never flipped point by point
+// (at a vertical tangent plane rounding would flip it to either side: into the part). Where
 // su x sv vanishes (a collapsed edge) the normal is taken a little inside the domain; throws
 // GeometryError if it is undefined there too.
 PassFrame pass_frame(const BSplineSurface& surface, PassDirection direction, double u, double v);
+
+// Which way a surface faces: its area inside the boundary polygon and the areas of its
+// projection onto the xy plane where S_u x S_v points up and where it points down (mm^2,
+// integrated on a 48 x 48 grid of the domain). A vertical wall has up + down ~ 0.
+struct SurfaceFacing {
+  double area_mm2 = 0;
+  double up_mm2 = 0;
+  double down_mm2 = 0;
+};
+SurfaceFacing surface_facing(const BSplineSurface& surface);
+// The same surface parameterized u' = u0 + u1 - u (knots, pole rows and boundary polygon
+// reflected): its normal S_u x S_v is reversed everywhere.
+BSplineSurface mirrored_u(const BSplineSurface& surface);
+// `surface` itself if its up area is at least its down area (surface_facing), else mirrored_u(surface): afterwards S_u x S_v points
+// up where the surface faces up (the whole surface, not point by point). generate_toolpath
+// orients its input so.
+BSplineSurface upward_oriented(const BSplineSurface& surface);
+// Even-odd point-in-polygon test in (u, v).
+bool inside_uv_polygon(const std::vector<Eigen::Vector2d>& poly, const Eigen::Vector2d& p);
 
 // Parameter ranges along (t) and across (w) the passes.
 std::pair<double, double> along_domain(const BSplineSurface& surface, PassDirection direction);

@@ -44,6 +44,10 @@ struct WorkItem {
 // more than 1 / 0.99^2 - 1 = 2 %.
 constexpr double kEdgeSin = 0.99;
 
+// A surface whose projection onto the xy plane is below this share of its area (sin of about
+// 1.1 degrees from vertical on average) is a vertical wall: no pass from above follows it.
+constexpr double kWallShare = 0.02;
+
 bool edge_is_slanted(const BSplineSurface& s, PassDirection dir, double t_end, const std::vector<PassLine>& lines) {
   for (const PassLine& line : lines) {
     const Eigen::Vector2d uv = dir == PassDirection::U ? Eigen::Vector2d(t_end, line.w) : Eigen::Vector2d(line.w, t_end);
@@ -113,8 +117,18 @@ void validate(const ToolpathOptions& o) {
   require(o.part_name.find_first_of("\r\n") == std::string::npos, "--part-name must be one line");
 }
 
-ToolpathResult generate_toolpath(const BSplineSurface& surface, const ToolpathOptions& o) {
+ToolpathResult generate_toolpath(const BSplineSurface& input, const ToolpathOptions& o) {
   validate(o);
+  // One orientation for the whole surface: its normal points up where it faces up (a normal
+  // flipped point by point would turn into the part at a vertical tangent plane).
+  const SurfaceFacing facing = surface_facing(input);
+  if (facing.up_mm2 + facing.down_mm2 < kWallShare * facing.area_mm2) {
+    throw GeometryError("the surface is a vertical wall: its projection onto the xy plane is " +
+                        mm(100 * (facing.up_mm2 + facing.down_mm2) / std::max(facing.area_mm2, 1e-300)) +
+                        " % of its area, so a ball end from above cannot follow it (a STEP/IGES part machined with "
+                        "--all-faces reports its walls)");
+  }
+  const BSplineSurface surface = upward_oriented(input);
   const auto start = std::chrono::steady_clock::now();
   ToolpathResult result;
   const double R = o.tool_radius_mm;
