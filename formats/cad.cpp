@@ -35,7 +35,10 @@
 #include <BRepLib.hxx>
 #include <BRepTools.hxx>
 #include <BRepTools_WireExplorer.hxx>
+#include <BRepMesh_IncrementalMesh.hxx>
 #include <BRep_Tool.hxx>
+#include <Poly_Triangulation.hxx>
+#include <TopLoc_Location.hxx>
 #include <Geom2d_BSplineCurve.hxx>
 #include <Geom2d_BezierCurve.hxx>
 #include <Geom2d_Curve.hxx>
@@ -469,10 +472,13 @@ std::vector<Eigen::Vector2d> outer_boundary(const TopoDS_Face& face, const Geom_
   return simple;
 }
 
-std::vector<BSplineSurface> faces_of(const TopoDS_Shape& shape, const std::string& path) {
-  std::vector<BSplineSurface> surfaces;
+// The faces of `shape` as B-spline surfaces, which way each faces, and (mesh_deflection_mm > 0)
+// a triangle mesh of them all.
+CadPart faces_of(const TopoDS_Shape& shape, const std::string& path, double mesh_deflection_mm, bool mesh_one_face) {
+  CadPart part;
   for (TopExp_Explorer it(shape, TopAbs_FACE); it.More(); it.Next()) {
     TopoDS_Face face = TopoDS::Face(it.Current());
+    const bool reversed = face.Orientation() == TopAbs_REVERSED;
     // BRep_Tool::Surface without a location argument applies the face's placement.
     Handle(Geom_BSplineSurface) g = as_bspline(BRep_Tool::Surface(face));
     if (g.IsNull()) {
@@ -480,15 +486,42 @@ std::vector<BSplineSurface> faces_of(const TopoDS_Shape& shape, const std::strin
       face = TopoDS::Face(converted.Shape());
       g = as_bspline(BRep_Tool::Surface(face));
     }
-    const std::string which = "face " + std::to_string(surfaces.size() + 1);
+    const std::string which = "face " + std::to_string(part.faces.size() + 1);
     if (g.IsNull()) throw InputError(path, 0, which + ": cannot convert its surface to a B-spline");
     BSplineSurface s = from_occt(g);
     s.boundary_uv = outer_boundary(face, *g);
     validate_surface(s, path + " (" + which + ")");
-    surfaces.push_back(std::move(s));
+    part.faces.push_back(std::move(s));
+    part.reversed.push_back(reversed);
   }
-  if (surfaces.empty()) throw InputError(path, 0, "no faces: the file holds no surface geometry");
-  return surfaces;
+  if (part.faces.empty()) throw InputError(path, 0, "no faces: the file holds no surface geometry");
+  if (mesh_deflection_mm > 0 && (part.faces.size() > 1 || mesh_one_face)) {
+    // Linear deflection in mm (not relative to the face size); 0.2 rad angular deflection; the
+    // faces meshed in parallel.
+    BRepMesh_IncrementalMesh mesher(shape, mesh_deflection_mm, Standard_False, 0.2, Standard_True);
+    int face_index = 0;
+    for (TopExp_Explorer it(shape, TopAbs_FACE); it.More(); it.Next(), ++face_index) {
+      const TopoDS_Face& face = TopoDS::Face(it.Current());
+      TopLoc_Location loc;
+      const Handle(Poly_Triangulation) tri = BRep_Tool::Triangulation(face, loc);
+      if (tri.IsNull() || tri->NbTriangles() == 0) {
+        throw InputError(path, 0, "face " + std::to_string(face_index + 1) + ": Open CASCADE could not mesh it");
+      }
+      const gp_Trsf placement = loc.Transformation();
+      const int base = static_cast<int>(part.mesh_vertices.size());
+      for (int n = 1; n <= tri->NbNodes(); ++n) {
+        const gp_Pnt p = tri->Node(n).Transformed(placement);
+        part.mesh_vertices.emplace_back(p.X(), p.Y(), p.Z());
+      }
+      for (int t = 1; t <= tri->NbTriangles(); ++t) {
+        int a = 0, b = 0, c = 0;
+        tri->Triangle(t).Get(a, b, c);
+        part.mesh_triangles.push_back({base + a - 1, base + b - 1, base + c - 1});
+        part.triangle_face.push_back(face_index);
+      }
+    }
+  }
+  return part;
 }
 
 // ": <the reader's first complaint>", or the reader's status when it said nothing.
@@ -553,8 +586,7 @@ void refuse_unreadable_entities(XSControl_Reader& reader, const std::string& pat
 // milliseconds every other time (not reproduced in 30 runs).
 constexpr rlim_t kReaderCpuLimitS = 600;
 
-std::vector<BSplineSurface> read_isolated(const std::string& path, const char* format,
-                                          const std::function<std::vector<BSplineSurface>()>& read) {
+CadPart read_isolated(const std::string& path, const char* format, const std::function<CadPart()>& read) {
   int fds[2];
   if (::pipe(fds) != 0) throw InputError(path, 0, std::string("cannot create a pipe: ") + std::strerror(errno));
   const pid_t pid = ::fork();
@@ -579,12 +611,19 @@ std::vector<BSplineSurface> read_isolated(const std::string& path, const char* f
     }
     std::ostringstream reply;
     try {
-      const std::vector<BSplineSurface> faces = read();
-      reply << "faces " << faces.size() << "\n";
-      for (const BSplineSurface& f : faces) {
+      const CadPart part = read();
+      reply << "faces " << part.faces.size() << "\n";
+      for (std::size_t i = 0; i < part.faces.size(); ++i) {
         std::ostringstream text;
-        write_surface(text, f);
-        reply << text.str().size() << "\n" << text.str();
+        write_surface(text, part.faces[i]);
+        reply << part.reversed[i] << " " << text.str().size() << "\n" << text.str();
+      }
+      reply.precision(17);
+      reply << "mesh " << part.mesh_vertices.size() << " " << part.mesh_triangles.size() << "\n";
+      for (const Eigen::Vector3d& v : part.mesh_vertices) reply << v.x() << " " << v.y() << " " << v.z() << "\n";
+      for (std::size_t t = 0; t < part.mesh_triangles.size(); ++t) {
+        const auto& tri = part.mesh_triangles[t];
+        reply << tri[0] << " " << tri[1] << " " << tri[2] << " " << part.triangle_face[t] << "\n";
       }
     } catch (const InputError& e) {
       reply.str("");
@@ -638,17 +677,31 @@ std::vector<BSplineSurface> read_isolated(const std::string& path, const char* f
   }
   std::size_t count = 0;
   if (kind != "faces" || !(in >> count)) throw InputError(path, 0, std::string("the ") + format + " reader process gave no answer");
-  std::vector<BSplineSurface> faces;
+  CadPart part;
   for (std::size_t i = 0; i < count; ++i) {
     std::size_t size = 0;
-    in >> size;
+    bool reversed = false;
+    in >> reversed >> size;
     in.get();
     std::string text(size, '\0');
     in.read(text.data(), static_cast<std::streamsize>(size));
     std::istringstream face(text);
-    faces.push_back(read_surface(face, path + " (face " + std::to_string(i + 1) + ")"));
+    part.faces.push_back(read_surface(face, path + " (face " + std::to_string(i + 1) + ")"));
+    part.reversed.push_back(reversed);
   }
-  return faces;
+  std::string mesh;
+  std::size_t nv = 0, nt = 0;
+  if (!(in >> mesh >> nv >> nt) || mesh != "mesh") throw InputError(path, 0, std::string("the ") + format + " reader process gave a short answer");
+  part.mesh_vertices.resize(nv);
+  for (Eigen::Vector3d& v : part.mesh_vertices) in >> v.x() >> v.y() >> v.z();
+  part.mesh_triangles.resize(nt);
+  part.triangle_face.resize(nt);
+  for (std::size_t t = 0; t < nt; ++t) {
+    auto& tri = part.mesh_triangles[t];
+    in >> tri[0] >> tri[1] >> tri[2] >> part.triangle_face[t];
+  }
+  if (!in) throw InputError(path, 0, std::string("the ") + format + " reader process gave a short answer");
+  return part;
 }
 
 }  // namespace
@@ -749,7 +802,7 @@ namespace {
 // Reads a STEP or IGES file with a Reader (STEPControl_Reader or IGESControl_Reader, both
 // XSControl_Readers), made in the child process that reads the file.
 template <class Reader>
-std::vector<BSplineSurface> read_with(const std::string& path, CadKind kind, const char* name) {
+CadPart read_with(const std::string& path, CadKind kind, const char* name, double mesh_deflection_mm, bool mesh_one_face) {
   check_kind(path, kind);
   const std::string action = std::string("read ") + name;
   return read_isolated(path, name, [&] {
@@ -759,29 +812,40 @@ std::vector<BSplineSurface> read_with(const std::string& path, CadKind kind, con
       if (status != IFSelect_RetDone) throw InputError(path, 0, std::string("not a readable ") + name + " file" + why(status));
       refuse_unreadable_entities(reader, path);
       reader.TransferRoots();
-      return faces_of(reader.OneShape(), path);
+      return faces_of(reader.OneShape(), path, mesh_deflection_mm, mesh_one_face);
     });
   });
 }
 
+// STEP or IGES, by extension, else by the first line.
+CadKind kind_of(const std::string& path) {
+  const std::string ext = lower(std::filesystem::path(path).extension().string());
+  if (ext == ".step" || ext == ".stp" || ext == ".p21") return CadKind::Step;
+  if (ext == ".iges" || ext == ".igs") return CadKind::Iges;
+  const std::string head = file_head(path);
+  if (looks_like_step(head)) return CadKind::Step;
+  if (looks_like_iges(head)) return CadKind::Iges;
+  throw InputError(path, 0, "neither a STEP nor an IGES file");
+}
+
+CadPart read_part(const std::string& path, CadKind kind, double mesh_deflection_mm, bool mesh_one_face = false) {
+  return kind == CadKind::Step ? read_with<STEPControl_Reader>(path, CadKind::Step, "STEP", mesh_deflection_mm, mesh_one_face)
+                               : read_with<IGESControl_Reader>(path, CadKind::Iges, "IGES", mesh_deflection_mm, mesh_one_face);
+}
+
 }  // namespace
 
-std::vector<BSplineSurface> read_step(const std::string& path) {
-  return read_with<STEPControl_Reader>(path, CadKind::Step, "STEP");
-}
+std::vector<BSplineSurface> read_step(const std::string& path) { return read_part(path, CadKind::Step, 0).faces; }
 
-std::vector<BSplineSurface> read_iges(const std::string& path) {
-  return read_with<IGESControl_Reader>(path, CadKind::Iges, "IGES");
-}
+std::vector<BSplineSurface> read_iges(const std::string& path) { return read_part(path, CadKind::Iges, 0).faces; }
 
-std::vector<BSplineSurface> read_cad(const std::string& path) {
-  const std::string ext = lower(std::filesystem::path(path).extension().string());
-  if (ext == ".step" || ext == ".stp" || ext == ".p21") return read_step(path);
-  if (ext == ".iges" || ext == ".igs") return read_iges(path);
-  const std::string head = file_head(path);
-  if (looks_like_step(head)) return read_step(path);
-  if (looks_like_iges(head)) return read_iges(path);
-  throw InputError(path, 0, "neither a STEP nor an IGES file");
+std::vector<BSplineSurface> read_cad(const std::string& path) { return read_part(path, kind_of(path), 0).faces; }
+
+CadPart read_cad_part(const std::string& path, double mesh_deflection_mm, bool mesh_one_face) {
+  if (!(mesh_deflection_mm > 0) || !std::isfinite(mesh_deflection_mm)) {
+    throw InputError(path, 0, "the mesh deflection must be > 0 mm");
+  }
+  return read_part(path, kind_of(path), mesh_deflection_mm, mesh_one_face);
 }
 
 }  // namespace photomill

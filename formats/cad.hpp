@@ -3,8 +3,11 @@
 // (written with 17 significant digits). Open CASCADE never prints to stdout from these calls.
 #pragma once
 
+#include <array>
 #include <string>
 #include <vector>
+
+#include <Eigen/Core>
 
 #include "formats/surface.hpp"
 
@@ -41,5 +44,22 @@ std::vector<BSplineSurface> read_iges(const std::string& path);
 // read_step or read_iges, chosen by extension (.step .stp .p21 / .iges .igs, any case), else by
 // the first line (ISO-10303-21 for STEP, an 80-column line with 'S' or 'G' in column 73 for IGES).
 std::vector<BSplineSurface> read_cad(const std::string& path);
+
+// A whole part: every face as read_cad gives it, which way each faces, and a triangle mesh of
+// all of them (Open CASCADE's BRepMesh_IncrementalMesh, every triangle within
+// `mesh_deflection_mm` of its face; faces share their edges' nodes, so the mesh has no gaps).
+struct CadPart {
+  std::vector<BSplineSurface> faces;
+  // Per face: true where the face is reversed in its shell, i.e. its outward normal (away from
+  // the solid's material) is -(S_u x S_v); false: S_u x S_v.
+  std::vector<bool> reversed;
+  std::vector<Eigen::Vector3d> mesh_vertices;    // mm
+  std::vector<std::array<int, 3>> mesh_triangles;  // indices into mesh_vertices
+  std::vector<int> triangle_face;                // the face of each triangle
+};
+// A file of one face is meshed only when `mesh_one_face` (nothing else to check it against).
+// Throws InputError as read_cad does, and for a deflection that is not > 0 or a face that Open
+// CASCADE could not mesh.
+CadPart read_cad_part(const std::string& path, double mesh_deflection_mm, bool mesh_one_face = false);
 
 }  // namespace photomill

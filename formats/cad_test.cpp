@@ -2,6 +2,7 @@
 // both with photomill's readers and with Open CASCADE's own, plus plane faces, units, errors,
 // and silence on stdout. Files go to a fresh directory under temp_directory_path().
 #include "formats/cad.hpp"
+#include "formats/bspline.hpp"
 
 #include <fcntl.h>
 #include <sys/wait.h>
@@ -21,6 +22,7 @@
 #include <gtest/gtest.h>
 
 #include <BRepBuilderAPI_MakeEdge.hxx>
+#include <BRepPrimAPI_MakeBox.hxx>
 #include <BRepBuilderAPI_MakeFace.hxx>
 #include <BRepBuilderAPI_MakeWire.hxx>
 #include <BRep_Builder.hxx>
@@ -512,6 +514,55 @@ TEST(Cad, EveryFaceIsReadAndConverted) {
   for (const Eigen::Vector3d& p : {cylinder.poles_mm.front(), cylinder.poles_mm.back()}) {
     EXPECT_NEAR(std::hypot(p.x(), p.y()), radius, 1e-9);
   }
+}
+
+// A whole solid: a 10 x 20 x 30 mm box. Every face, which way it faces (S_u x S_v, reversed
+// where the shell says so, points out of the box), and a mesh of them all within the deflection.
+TEST(Cad, PartFacesPointOutwardsAndMeshTheSolid) {
+  TempDir dir;
+  occt_write_step(BRepPrimAPI_MakeBox(gp_Pnt(1, 2, 3), 10, 20, 30).Shape(), dir.file("box.step"));
+  const CadPart part = read_cad_part(dir.file("box.step"), 0.01);
+  ASSERT_EQ(part.faces.size(), 6u);
+  ASSERT_EQ(part.reversed.size(), 6u);
+  const Eigen::Vector3d centre(6, 12, 18);
+  for (std::size_t i = 0; i < part.faces.size(); ++i) {
+    const BSplineSurface& f = part.faces[i];
+    const double u = 0.5 * (f.knots_u.front() + f.knots_u.back()), v = 0.5 * (f.knots_v.front() + f.knots_v.back());
+    const SurfaceDerivatives d = surface_derivatives(f, u, v);
+    const Eigen::Vector3d outward = (part.reversed[i] ? -1.0 : 1.0) * d.su.cross(d.sv);
+    EXPECT_GT(outward.dot(d.p - centre), 0) << "face " << i;
+  }
+  ASSERT_GE(part.mesh_triangles.size(), 12u);
+  ASSERT_EQ(part.triangle_face.size(), part.mesh_triangles.size());
+  std::vector<int> per_face(6, 0);
+  for (std::size_t t = 0; t < part.mesh_triangles.size(); ++t) {
+    ASSERT_GE(part.triangle_face[t], 0);
+    ASSERT_LT(part.triangle_face[t], 6);
+    ++per_face[static_cast<std::size_t>(part.triangle_face[t])];
+    for (const int v : part.mesh_triangles[t]) {
+      ASSERT_GE(v, 0);
+      ASSERT_LT(static_cast<std::size_t>(v), part.mesh_vertices.size());
+    }
+  }
+  for (int n : per_face) EXPECT_GE(n, 2);
+  // Every node lies on the box's surface.
+  for (const Eigen::Vector3d& p : part.mesh_vertices) {
+    const double on = std::min({std::abs(p.x() - 1), std::abs(p.x() - 11), std::abs(p.y() - 2), std::abs(p.y() - 22),
+                                std::abs(p.z() - 3), std::abs(p.z() - 33)});
+    EXPECT_LT(on, 1e-9) << p.transpose();
+  }
+  // read_cad gives the same faces; one face alone is meshed only on request; bad deflections.
+  EXPECT_EQ(read_cad(dir.file("box.step")), part.faces);
+  BSplineSurface plane;
+  plane.degree_u = plane.degree_v = 1;
+  plane.num_poles_u = plane.num_poles_v = 2;
+  plane.knots_u = plane.knots_v = {0, 0, 1, 1};
+  plane.poles_mm = {{0, 0, 0}, {0, 5, 0}, {5, 0, 0}, {5, 5, 0}};
+  write_step(plane, dir.file("plane.step"));
+  EXPECT_TRUE(read_cad_part(dir.file("plane.step"), 0.01).mesh_triangles.empty());
+  EXPECT_GE(read_cad_part(dir.file("plane.step"), 0.01, true).mesh_triangles.size(), 2u);
+  EXPECT_THROW(read_cad_part(dir.file("box.step"), 0), InputError);
+  EXPECT_THROW(read_cad_part(dir.file("box.step"), std::nan("")), InputError);
 }
 
 // A curved outer wire comes back as a counter-clockwise polygon sampled on it.

@@ -12,6 +12,7 @@
 #include <gtest/gtest.h>
 
 #include "formats/cad.hpp"
+#include "formats/json_value.hpp"
 #include "formats/surface.hpp"
 #include "tests/option_check.hpp"
 #include "tests/run_tool.hpp"
@@ -161,6 +162,81 @@ TEST(ToolpathCli, StepAndIgesInputGiveOnlyClDataOnStdout) {
   const ToolResult face = run_tool("toolpath", quick({"--face", "1", step.string()}));
   EXPECT_EQ(face.exit_code, 2);
   EXPECT_NE(face.err.find("has 1 face"), std::string::npos) << face.err;
+}
+
+// --all-faces on a STEP file of one face (no neighbours: nothing to mesh or check) and the ways
+// to ask for it wrongly.
+TEST(ToolpathCli, AllFacesOnOneFaceAndItsMisuses) {
+  TempDir dir;
+  const BSplineSurface ridge = test::cylinder_surface(20, true);
+  const fs::path step = dir.path() / "ridge.step", json = dir.path() / "r.json";
+  write_step(ridge, step.string());
+  const ToolResult single = run_tool("toolpath", quick({step.string()}));
+  const ToolResult all = run_tool("toolpath", quick({"--all-faces", "--report", json.string(), step.string()}));
+  EXPECT_EQ(all.exit_code, 0) << all.err;
+  EXPECT_NE(all.err.find("part: 1 of 1 faces machined"), std::string::npos) << all.err;
+  // The same passes as the single-face run (one face: no whole-part changes).
+  EXPECT_EQ(std::count(all.out.begin(), all.out.end(), '\n'), std::count(single.out.begin(), single.out.end(), '\n'));
+  const JsonValue report = parse_json(photomill::test::read_file(json), json.string());
+  ASSERT_NE(report.at("path.machined_faces"), nullptr);
+  EXPECT_EQ(report.at("path.machined_faces")->number, 1);
+  EXPECT_EQ(report.at("verify")->type, JsonValue::Type::Null);
+  const ToolResult text = run_tool("toolpath", quick({"--all-faces", "-"}), ridge_text());
+  EXPECT_EQ(text.exit_code, 1);
+  EXPECT_NE(text.err.find("not a STEP or IGES file"), std::string::npos) << text.err;
+  EXPECT_TRUE(text.out.empty());
+  const ToolResult both = run_tool("toolpath", quick({"--all-faces", "--face", "0", step.string()}));
+  EXPECT_EQ(both.exit_code, 2);
+  EXPECT_NE(both.err.find("exclude each other"), std::string::npos) << both.err;
+  const ToolResult png = run_tool("toolpath", quick({"--all-faces", "--preview", (dir.path() / "p.png").string(), step.string()}));
+  EXPECT_EQ(png.exit_code, 2);
+  EXPECT_FALSE(fs::exists(dir.path() / "p.png"));
+  const ToolResult coarse = run_tool("toolpath", quick({"--all-faces", "--mesh-tol-mm", "0.001", step.string()}));
+  EXPECT_EQ(coarse.exit_code, 2);
+  EXPECT_NE(coarse.err.find("--mesh-tol-mm"), std::string::npos) << coarse.err;
+  // A part of one face is meshed for --verify (at the given deflection): the z-map runs.
+  const ToolResult verified =
+      run_tool("toolpath", quick({"--all-faces", "--verify", "--zmap-cell-mm", "0.25", "--gouge-tol-mm", "0.01",
+                                  "--mesh-tol-mm", "0.005", step.string()}));
+  EXPECT_EQ(verified.exit_code, 0) << verified.err;
+  EXPECT_NE(verified.err.find("swept ball against the part's mesh"), std::string::npos) << verified.err;
+}
+
+// The real CAD part (issue 26): FreeCAD's 100 x 60 x 20 mm box with 8 mm fillets on its top edges,
+// ten faces. All faces that face up in one run, the four walls and the underside reported, and
+// the program checked against the whole solid: with a 3 mm ball, h 0.01 mm, e 0.005 mm, the
+// swept ball reaches at most 0.001 mm into the part's mesh (0.0002 mm from the faces), and the
+// material left on the machined faces is within h along the normal.
+TEST(FilletedBox, AllUpwardFacesInOneRunCheckedAgainstTheSolid) {
+  const fs::path box = fs::path(PHOTOMILL_SHARED_DIR) / "data" / "cad-parts" / "filleted_box.step";
+  if (!fs::exists(box)) GTEST_SKIP() << box << " is missing (../shared/data)";
+  TempDir dir;
+  const fs::path json = dir.path() / "r.json", cl = dir.path() / "part.cl";
+  const ToolResult r = run_tool("toolpath", {"--all-faces", "--verify", "--tool-radius-mm", "3", "--scallop-mm", "0.01",
+                                             "--chord-tol-mm", "0.005", "--spindle-rpm", "12000", "--report", json.string(),
+                                             "-o", cl.string(), box.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("5 of 10 faces machined (4 vertical walls, 1 facing down)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("vertical wall, not machined"), std::string::npos) << r.err;
+  const JsonValue report = parse_json(photomill::test::read_file(json), json.string());
+  const auto number = [&](const char* path) {
+    const JsonValue* v = report.at(path);
+    EXPECT_NE(v, nullptr) << path;
+    return v && v->is_number() ? v->number : std::nan("");
+  };
+  EXPECT_EQ(number("path.machined_faces"), 5);
+  EXPECT_EQ(number("path.wall_faces"), 4);
+  EXPECT_EQ(number("path.down_faces"), 1);
+  EXPECT_GT(number("path.cl_points"), 50000);
+  EXPECT_LE(number("verify.max_penetration_mm"), 0.001);
+  EXPECT_LE(number("verify.max_gouge_normal_mm"), 0.001);
+  EXPECT_LE(number("verify.p95_left_normal_mm"), 0.01);
+  EXPECT_LE(number("verify.max_left_normal_mm"), 0.0101);
+  EXPECT_GT(number("verify.nodes"), 500000);
+  // The program posts, spindle first.
+  const ToolResult g = run_tool("clpost", {cl.string()});
+  EXPECT_EQ(g.exit_code, 0) << g.err;
+  EXPECT_LT(g.out.find(" M3"), g.out.find("\nG1 ")) << g.out.substr(0, 400);
 }
 
 TEST(ToolpathCli, PreviewReportAndVerify) {

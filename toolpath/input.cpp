@@ -14,6 +14,7 @@
 #include "formats/error.hpp"
 #include "formats/log.hpp"
 #include "formats/tool.hpp"
+#include "toolpath/iso_passes.hpp"
 
 namespace photomill::toolpath {
 namespace {
@@ -70,7 +71,7 @@ LoadedSurface pick(std::vector<BSplineSurface> faces, std::optional<std::size_t>
                      " face" + (faces.size() == 1 ? "" : "s") + " (0.." + std::to_string(faces.size() - 1) + ")");
   }
   if (!face && faces.size() > 1) {
-    log::warn(source + " has " + std::to_string(faces.size()) + " faces; using face 0 (choose with --face N)");
+    log::warn(source + " has " + std::to_string(faces.size()) + " faces; using face 0 (choose one with --face N, or machine the whole part with --all-faces)");
   }
   out.surface = std::move(faces[out.face]);
   return out;
@@ -96,6 +97,37 @@ LoadedSurface load_surface(const std::string& path, std::optional<std::size_t> f
   LoadedSurface out;
   out.surface = read_surface(in, source);
   return out;
+}
+
+namespace {
+
+LoadedPart outward(CadPart part) {
+  LoadedPart out;
+  for (std::size_t i = 0; i < part.faces.size(); ++i) {
+    out.faces.push_back(part.reversed[i] ? mirrored_u(part.faces[i]) : std::move(part.faces[i]));
+  }
+  out.mesh.vertices = std::move(part.mesh_vertices);
+  out.mesh.triangles = std::move(part.mesh_triangles);
+  out.triangle_face = std::move(part.triangle_face);
+  return out;
+}
+
+}  // namespace
+
+LoadedPart load_part(const std::string& path, double mesh_deflection_mm, bool mesh_one_face) {
+  const std::string source = tool::source_name(path);
+  if (path != "-" && cad_extension(path)) return outward(read_cad_part(path, mesh_deflection_mm, mesh_one_face));
+  const std::string data = tool::read_all(path, kMaxInputBytes);
+  if (!looks_like_cad(std::string_view(data).substr(0, 1024))) {
+    throw InputError(source, 1, "not a STEP or IGES file: --all-faces machines a whole CAD part (a photomill surface is one face)");
+  }
+  if (path != "-") return outward(read_cad_part(path, mesh_deflection_mm, mesh_one_face));
+  const TempFile tmp(data);
+  try {
+    return outward(read_cad_part(tmp.path(), mesh_deflection_mm, mesh_one_face));
+  } catch (const InputError& e) {
+    throw InputError(source, e.line(), e.message());
+  }
 }
 
 }  // namespace photomill::toolpath

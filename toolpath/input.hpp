@@ -6,7 +6,10 @@
 #include <optional>
 #include <string>
 
+#include <vector>
+
 #include "formats/surface.hpp"
+#include "toolpath/mesh_drop.hpp"
 
 namespace photomill::toolpath {
 
@@ -22,5 +25,17 @@ struct LoadedSurface {
 // line). STEP/IGES from stdin pass through a temporary file. `face` picks a face of a CAD file;
 // unset: the first. Throws InputError for unreadable input, UsageError for a face out of range.
 LoadedSurface load_surface(const std::string& path, std::optional<std::size_t> face);
+
+// A whole STEP or IGES part (path or "-"): every face with S_u x S_v pointing out of the material
+// (faces reversed in their shell mirrored in u, iso_passes.hpp's mirrored_u), and a triangle mesh
+// of all faces within `mesh_deflection_mm` of them (a part of one face only when
+// `mesh_one_face`: it has no neighbours to check against). Throws InputError for input that is not
+// STEP/IGES (a photomill surface text is one surface: no part) or that Open CASCADE refuses.
+struct LoadedPart {
+  std::vector<BSplineSurface> faces;
+  TriangleMesh mesh;
+  std::vector<int> triangle_face;  // the face of each mesh triangle
+};
+LoadedPart load_part(const std::string& path, double mesh_deflection_mm, bool mesh_one_face);
 
 }  // namespace photomill::toolpath

@@ -2,11 +2,15 @@
 // Reads a surface (photomill text, STEP or IGES; a file or '-'), writes CL data (APT or CSV) to
 // stdout or -o; optionally a PNG preview, a JSON report and a z-map verification.
 #include <map>
+#include <optional>
+#include <sstream>
 
 #include "formats/cl_data.hpp"
+#include "formats/error.hpp"
 #include "formats/log.hpp"
 #include "formats/tool.hpp"
 #include "toolpath/input.hpp"
+#include "toolpath/part.hpp"
 #include "toolpath/preview.hpp"
 #include "toolpath/report.hpp"
 #include "toolpath/toolpath.hpp"
@@ -15,11 +19,90 @@
 using namespace photomill;
 using namespace photomill::toolpath;
 
+namespace {
+
+std::string fixed(double v, int digits) {
+  std::ostringstream s;
+  s.setf(std::ios::fixed);
+  s.precision(digits);
+  s << v;
+  return s.str();
+}
+
+std::string box(const PartFace& f) {
+  return "x " + fixed(f.min_mm.x(), 1) + ".." + fixed(f.max_mm.x(), 1) + " y " + fixed(f.min_mm.y(), 1) + ".." +
+         fixed(f.max_mm.y(), 1) + " z " + fixed(f.min_mm.z(), 1) + ".." + fixed(f.max_mm.z(), 1) + " mm";
+}
+
+// --all-faces: the whole part in one program (toolpath/part.hpp), one line per face on stderr.
+void run_part(const std::string& input, const std::string& output, const std::string& format, const std::string& report,
+              const ToolpathOptions& o,
+              PartToolpathOptions part_options, double mesh_tol_mm, std::optional<double> verify_cell_mm) {
+  std::optional<log::Step> step(std::in_place, "reading the part and meshing it");
+  const LoadedPart part = load_part(input, mesh_tol_mm, verify_cell_mm.has_value());
+  step.emplace("machining its faces");
+  log::info(std::to_string(part.faces.size()) + " faces, mesh of " + std::to_string(part.mesh.triangles.size()) +
+            " triangles within " + fixed(mesh_tol_mm, 4) + " mm");
+  part_options.toolpath = o;
+  const PartToolpathResult r = generate_part_toolpath(part.faces, part.mesh, part.triangle_face, part_options, [&](const PartFace& f, std::size_t of) {
+    const std::string head = "face " + std::to_string(f.index) + " of " + std::to_string(of) + " (" + box(f) + "): ";
+    if (f.kind == PartFace::Kind::Wall) {
+      log::warn(head + "vertical wall, not machined: a ball end from above cannot follow it (finish it with the side of an end mill)");
+    } else if (f.kind == PartFace::Kind::Down) {
+      log::info(head + "faces down, not machined (the part's underside or an undercut)");
+    } else {
+      log::info(head + std::to_string(f.stats.passes) + " passes, " + std::to_string(f.stats.cl_points) + " CL points, side step " +
+                fixed(f.stats.min_side_step_mm, 3) + ".." + fixed(f.stats.max_side_step_mm, 3) + " mm");
+      if (f.down_share > 0.01) {
+        log::warn(head + fixed(100 * f.down_share, 1) + " % of it overhangs (faces down): a ball from above leaves it");
+      }
+      if (f.gouge_runs > 0) log::warn(head + std::to_string(f.gouge_runs) + " gouge runs against the face itself (lifted)");
+    }
+  });
+  step.reset();
+  log::info("part: " + std::to_string(r.machined) + " of " + std::to_string(r.faces.size()) + " faces machined (" +
+            std::to_string(r.walls) + " vertical walls, " + std::to_string(r.down) + " facing down), " +
+            std::to_string(r.cl.moves.size()) + " moves, feed path " + fixed(r.feed_length_mm, 1) + " mm, " +
+            fixed(r.seconds, 1) + " s");
+  log::info("whole-part check against all faces: " + std::to_string(r.mesh_lifted_points) + " CL points raised (by up to " +
+            fixed(r.max_mesh_lift_mm, 4) + " mm), " + std::to_string(r.mesh_split_points) + " points added to moves");
+  std::optional<PartZmapResult> checked;
+  if (verify_cell_mm) {
+    step.emplace("verifying the program on a z-map of the part");
+    const PartZmapResult& z = checked.emplace( verify_part_zmap(part.mesh, part.triangle_face, r.faces, r.cl, o.tool_radius_mm, *verify_cell_mm, o.threads));
+    step.reset();
+    const auto at = [](const Eigen::Vector3d& p) { return "(" + fixed(p.x(), 2) + ", " + fixed(p.y(), 2) + ", " + fixed(p.z(), 2) + ")"; };
+    (z.max_penetration_mm > o.gouge_tol_mm ? log::warn : log::info)(
+        "swept ball against the part's mesh: deepest gouge " + fixed(z.max_penetration_mm, 4) + " mm" +
+        (z.max_penetration_mm > 0 ? " at " + at(z.max_penetration_at) : "") + " (ball positions every " +
+        fixed(z.penetration_step_mm, 2) + " mm)");
+    log::info("z-map of the part's mesh (" + fixed(z.cell_mm, 3) + " mm cells, " + std::to_string(z.nodes) +
+              " nodes on machined faces): gouge vertically " + fixed(z.max_gouge_mm, 4) + " mm" +
+              (z.max_gouge_mm > 0 ? " at " + at(z.max_gouge_at) : "") + ", along the normal " + fixed(z.max_gouge_normal_mm, 4) +
+              " mm; material left along the normal p95 " + fixed(z.p95_left_normal_mm, 4) + " mm, max " +
+              fixed(z.max_left_normal_mm, 4) + " mm at " + at(z.max_left_normal_at) + " (vertically p95 " +
+              fixed(z.p95_left_mm, 4) + ", max " + fixed(z.max_left_mm, 4) + " mm)");
+  }
+  tool::OutputFile cl_out(output);
+  (format == "csv" ? write_cl_csv : write_cl_apt)(cl_out.stream(), r.cl);
+  std::optional<tool::OutputFile> report_out;
+  if (!report.empty()) {
+    report_out.emplace(report);
+    write_part_report(report_out->stream(), input, o, r, mesh_tol_mm, part.mesh.triangles.size(), checked ? &*checked : nullptr);
+    report_out->commit();
+  }
+  cl_out.commit();
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
   ToolpathOptions o;
   std::string input = "-", output = "-", format = "apt", direction = "u", pattern = "zigzag", preview, report;
   std::optional<std::size_t> face;
-  bool no_lift = false, verify = false;
+  bool no_lift = false, verify = false, all_faces = false;
+  PartToolpathOptions part_options;
+  double mesh_tol_mm = 0.0002;
   ZmapOptions zmap;
   return tool::run(
       argc, argv,
@@ -30,6 +113,10 @@ int main(int argc, char** argv) {
         app.add_option("-o,--output", output, "CL data output ('-' = stdout)")->capture_default_str();
         app.add_option("--format", format, "CL data format")->check(CLI::IsMember({"apt", "csv"}))->capture_default_str();
         app.add_option("--face", face, "Face of a STEP/IGES file, 0-based in file order (default 0)");
+        app.add_flag("--all-faces", all_faces,
+                     "Machine the whole STEP/IGES part: every face that faces up, checked against all faces (walls and faces facing down are reported)");
+        app.add_option("--mesh-tol-mm", mesh_tol_mm, "--all-faces: the part's mesh for the whole-part check is within this of the faces")
+            ->capture_default_str();
         app.add_option("--tool-radius-mm", o.tool_radius_mm, "Ball-end radius R")->capture_default_str();
         app.add_option("--scallop-mm", o.scallop_mm, "Highest material left above the surface h (cusps and chords)")->capture_default_str();
         app.add_option("--chord-tol-mm", o.chord_tol_mm, "Chord tolerance e between CC points, below --scallop-mm")->capture_default_str();
@@ -62,6 +149,13 @@ int main(int argc, char** argv) {
         o.direction = direction == "u" ? PassDirection::U : PassDirection::V;
         o.pattern = pattern == "zigzag" ? Pattern::ZigZag : Pattern::OneWay;
         validate(o);
+        if (all_faces) {
+          if (face) throw UsageError("--face and --all-faces exclude each other");
+          if (!preview.empty()) throw UsageError("--preview is not available with --all-faces yet");
+          if (!(mesh_tol_mm > 0) || !(mesh_tol_mm < o.gouge_tol_mm)) throw UsageError("--mesh-tol-mm must be > 0 and below --gouge-tol-mm");
+          return run_part(input, output, format, report, o, part_options, mesh_tol_mm,
+                          verify ? std::optional<double>(zmap.cell_mm) : std::nullopt);
+        }
         const LoadedSurface in = load_surface(input, face);
         log::debug("surface: degrees " + std::to_string(in.surface.degree_u) + " x " + std::to_string(in.surface.degree_v) +
                    ", " + std::to_string(in.surface.num_poles_u) + " x " + std::to_string(in.surface.num_poles_v) +

@@ -149,4 +149,84 @@ std::vector<std::string> summary_lines(const ReportContext& c, std::size_t max_g
   return lines;
 }
 
+void write_part_report(std::ostream& out, const std::string& input, const ToolpathOptions& o,
+                       const PartToolpathResult& r, double mesh_tol_mm, std::size_t mesh_triangles,
+                       const PartZmapResult* z) {
+  JsonWriter j(out);
+  j.begin_object();
+  j.field("tool", "toolpath");
+  j.field("version", PHOTOMILL_VERSION);
+  j.field("input", input);
+  j.field("all_faces", true);
+  j.key("options").begin_object();
+  j.field("tool_radius_mm", o.tool_radius_mm);
+  j.field("scallop_mm", o.scallop_mm);
+  j.field("chord_tol_mm", o.chord_tol_mm);
+  j.field("gouge_tol_mm", o.gouge_tol_mm);
+  j.field("stock_mm", o.stock_mm);
+  j.field("mesh_tol_mm", mesh_tol_mm);
+  j.field("safe_z_mm", r.safe_z_mm);
+  j.end_object();
+  j.key("faces").begin_array();
+  for (const PartFace& f : r.faces) {
+    j.begin_object();
+    j.field("face", f.index);
+    j.field("kind", f.kind == PartFace::Kind::Machined ? "machined" : f.kind == PartFace::Kind::Wall ? "wall" : "down");
+    j.field("area_mm2", f.area_mm2);
+    j.field("up_share", f.up_share);
+    j.field("down_share", f.down_share);
+    xyz(j, "min_mm", f.min_mm);
+    xyz(j, "max_mm", f.max_mm);
+    if (f.kind == PartFace::Kind::Machined) {
+      j.field("passes", f.stats.passes);
+      j.field("cl_points", f.stats.cl_points);
+      j.field("min_side_step_mm", f.stats.min_side_step_mm);
+      j.field("max_side_step_mm", f.stats.max_side_step_mm);
+      j.field("max_chord_error_mm", f.stats.max_chord_error_mm);
+      j.field("gouge_runs", f.gouge_runs);
+      j.field("seconds", f.stats.seconds);
+    }
+    j.end_object();
+  }
+  j.end_array();
+  j.key("path").begin_object();
+  j.field("machined_faces", r.machined);
+  j.field("wall_faces", r.walls);
+  j.field("down_faces", r.down);
+  j.field("cl_points", r.cl_points);
+  j.field("moves", r.cl.moves.size());
+  j.field("feed_length_mm", r.feed_length_mm);
+  j.field("rapid_length_mm", r.rapid_length_mm);
+  j.field("seconds", r.seconds);
+  j.end_object();
+  j.key("whole_part_check").begin_object();
+  j.field("mesh_triangles", mesh_triangles);
+  j.field("lifted_points", r.mesh_lifted_points);
+  j.field("max_lift_mm", r.max_mesh_lift_mm);
+  j.field("added_points", r.mesh_split_points);
+  j.end_object();
+  j.key("verify");
+  if (z) {
+    j.begin_object();
+    j.field("cell_mm", z->cell_mm);
+    j.field("nodes", z->nodes);
+    j.field("max_penetration_mm", z->max_penetration_mm);
+    xyz(j, "max_penetration_at", z->max_penetration_at);
+    j.field("penetration_step_mm", z->penetration_step_mm);
+    j.field("max_gouge_vertical_mm", z->max_gouge_mm);
+    xyz(j, "max_gouge_vertical_at", z->max_gouge_at);
+    j.field("max_gouge_normal_mm", z->max_gouge_normal_mm);
+    j.field("p95_left_normal_mm", z->p95_left_normal_mm);
+    j.field("max_left_normal_mm", z->max_left_normal_mm);
+    xyz(j, "max_left_normal_at", z->max_left_normal_at);
+    j.field("p95_left_vertical_mm", z->p95_left_mm);
+    j.field("max_left_vertical_mm", z->max_left_mm);
+    j.end_object();
+  } else {
+    j.null();
+  }
+  j.end_object();
+  out << "\n";
+}
+
 }  // namespace photomill::toolpath

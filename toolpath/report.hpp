@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "toolpath/part.hpp"
 #include "toolpath/toolpath.hpp"
 #include "toolpath/zmap.hpp"
 
@@ -24,6 +25,12 @@ struct ReportContext {
 };
 
 void write_report(std::ostream& out, const ReportContext& context);
+
+// --all-faces: the whole part's report (keys in docs/toolpath.md): options, every face with what
+// became of it, the whole-part check, the z-map (null without --verify).
+void write_part_report(std::ostream& out, const std::string& input, const ToolpathOptions& options,
+                       const PartToolpathResult& result, double mesh_tol_mm, std::size_t mesh_triangles,
+                       const PartZmapResult* verify);
 
 // Lines for stderr: the summary, up to `max_gouges` gouge runs ("... and N more"), the z-map.
 std::vector<std::string> summary_lines(const ReportContext& context, std::size_t max_gouges = 10);
