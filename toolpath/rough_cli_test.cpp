@@ -9,6 +9,7 @@
 
 #include "formats/cl_data.hpp"
 #include "formats/surface.hpp"
+#include "tests/option_check.hpp"
 #include "tests/run_tool.hpp"
 #include "tests/temp_dir.hpp"
 #include "toolpath/test_surfaces.hpp"
@@ -17,6 +18,7 @@ namespace photomill::toolpath {
 namespace {
 
 namespace fs = std::filesystem;
+using photomill::test::count_of;
 using photomill::test::run_tool;
 using photomill::test::TempDir;
 using photomill::test::ToolResult;
@@ -143,6 +145,41 @@ TEST(RoughCli, OutputFileOnlyOnSuccessAndClpostPostsIt) {
   ASSERT_NE(spindle, std::string::npos);
   ASSERT_NE(first_feed, std::string::npos);
   EXPECT_LT(spindle, first_feed);
+}
+
+// Rest machining from the command line: a 10 mm end mill, then a 3 mm one after it; cutsim replays
+// both on the stock: neither rapids nor plunges into material. A CSV program carries no cutter.
+TEST(RoughCli, RestAfterALargerToolAndCutsimReplaysBoth) {
+  TempDir dir;
+  const fs::path surf = dir.path() / "dome.surf", big = dir.path() / "big.cl", rest = dir.path() / "rest.cl",
+                 csv = dir.path() / "big.csv";
+  std::ofstream(surf) << dome_text();
+  ToolResult r = run_tool("rough", {"--cell-mm", "0.5", "--tool-diameter-mm", "10", "--step-down-mm", "3", "-o", big.string(),
+                                    surf.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = run_tool("rough", {"--cell-mm", "0.5", "--tool-diameter-mm", "3", "--step-down-mm", "1", "--rest-after", big.string(),
+                         "--rest-min-mm", "0.1", "--verify", "-o", rest.string(), surf.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("rest machining after 1 program"), std::string::npos) << r.err;
+  r = run_tool("cutsim", {"--allowance-mm", "0.5", surf.string(), big.string(), rest.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(count_of(r.err, "0 rapids and 0 plunges into material"), 2u) << r.err;
+  r = run_tool("rough", {"--cell-mm", "0.5", "--tool-diameter-mm", "10", "--step-down-mm", "3", "--format", "csv", "-o",
+                         csv.string(), surf.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = run_tool("rough", {"--cell-mm", "0.5", "--tool-diameter-mm", "3", "--rest-after", csv.string(), "-o", rest.string(),
+                         surf.string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("no tool size"), std::string::npos) << r.err;
+  // The same tool after itself: nothing left (the surface right after --rest-after is the surface).
+  r = run_tool("rough", {"--cell-mm", "0.5", "--tool-diameter-mm", "10", "--step-down-mm", "3", "--rest-after", big.string(),
+                         surf.string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("nothing left to cut"), std::string::npos) << r.err;
+  EXPECT_EQ(r.out, "");
+  r = run_tool("rough", {"--tool-diameter-mm", "3", "--rest-after", big.string(), "--rest-min-mm", "0", surf.string()});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--rest-min-mm"), std::string::npos) << r.err;
 }
 
 // cutsim on rough's program: every option, its outputs, its refusals.

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "formats/cl_data.hpp"
+#include "formats/error.hpp"
 #include "formats/log.hpp"
 #include "formats/tool.hpp"
 #include "toolpath/input.hpp"
@@ -27,6 +28,7 @@ int main(int argc, char** argv) {
   std::string box;
   std::optional<std::size_t> face;
   bool verify = false;
+  std::vector<std::string> rest_after;
   double verify_cell_mm = 0.2;
   return tool::run(
       argc, argv,
@@ -59,12 +61,29 @@ int main(int argc, char** argv) {
         app.add_option("--part-name", o.part_name, "PARTNO in the CL data")->capture_default_str();
         app.add_option("--spindle-rpm", o.spindle_rpm, "Spindle speed written to the CL data (SPINDL)");
         app.add_flag("--coolant", o.coolant, "Coolant on during the program (COOLNT)");
+        app.add_option("--rest-after", rest_after,
+                       "Rest machining: clear only what this earlier CL program (APT, with its CUTTER) left of the stock; repeatable")
+            ->allow_extra_args(false)
+            ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+        app.add_option("--rest-min-mm", o.rest_min_mm, "Rest machining: material thinner than this above a level is left")
+            ->capture_default_str();
         app.add_flag("--verify", verify, "Cut the stock on a z-map; report material left and any cut into the allowance");
         app.add_option("--zmap-cell-mm", verify_cell_mm, "Z-map grid spacing for --verify")->capture_default_str();
       },
       [&] {
         if (!box.empty()) o.stock = parse_stock_box(box);
         o.direction = direction == "climb" ? MillingDirection::Climb : MillingDirection::Conventional;
+        for (const std::string& path : rest_after) {
+          const auto in = tool::open_input(path);
+          PriorCut prior;
+          prior.cl = read_cl(*in, tool::source_name(path));
+          if (!(prior.cl.tool_diameter_mm > 0)) {
+            throw InputError(tool::source_name(path), 0,
+                             "no tool size (no CUTTER record): rest machining needs the earlier program's cutter (APT CL data)");
+          }
+          prior.cutter = {prior.cl.tool_diameter_mm / 2, prior.cl.tool_corner_radius_mm};
+          o.rest_after.push_back(std::move(prior));
+        }
         validate(o);
         const LoadedSurface in = load_surface(input, face);
         std::optional<log::Step> step(std::in_place, "z-level roughing");
@@ -78,13 +97,19 @@ int main(int argc, char** argv) {
         log::info("stock " + f3(s.stock.min_mm.x()) + "," + f3(s.stock.min_mm.y()) + "," + f3(s.stock.min_mm.z()) + " to " +
                   f3(s.stock.max_mm.x()) + "," + f3(s.stock.max_mm.y()) + "," + f3(s.stock.max_mm.z()) + " mm, step-over " +
                   f3(s.step_over_mm) + " mm, safe z " + f3(s.safe_z_mm) + " mm");
+        if (!o.rest_after.empty()) {
+          log::info("rest machining after " + std::to_string(o.rest_after.size()) + " program(s): material left at " +
+                    std::to_string(s.rest_levels) + " of " + std::to_string(s.levels) + " levels");
+        }
         if (s.skipped_loops > 0) {
           log::warn(std::to_string(s.skipped_loops) + " loops too narrow for a ramp or a helix were left uncut (material left there)");
         }
         if (verify) {
           step.emplace("cutting the stock on a z-map");
-          const StockCheck c = check_stock(in.surface, s.stock, {{&r.cl, {o.tool_diameter_mm / 2, o.corner_radius_mm}}},
-                                           o.allowance_mm, verify_cell_mm, o.threads);
+          std::vector<CutProgram> programs;
+          for (const PriorCut& prior : o.rest_after) programs.push_back({&prior.cl, prior.cutter});
+          programs.push_back({&r.cl, {o.tool_diameter_mm / 2, o.corner_radius_mm}});
+          const StockCheck c = check_stock(in.surface, s.stock, programs, o.allowance_mm, verify_cell_mm, o.threads);
           step.reset();
           (c.max_into_allowance_mm > 1e-3 ? log::warn : log::info)(
               "verify: " + f3(c.cell_mm) + " mm z-map, " + std::to_string(c.nodes) + " nodes: material above surface + allowance p95 " +

@@ -125,6 +125,19 @@ public:
     }
   }
 
+  // The top lowered by an earlier program (zmap.hpp cut_material with its cutter).
+  void cut_by(const ClData& cl, const Cutter& cutter, int threads) {
+    HeightGrid grid;
+    grid.lo = g_.lo;
+    grid.cell_mm = g_.cell;
+    grid.nx = g_.nx;
+    grid.ny = g_.ny;
+    grid.z = top_;
+    cut_material(grid, cl, cutter, threads);
+    top_ = std::move(grid.z);
+  }
+  const std::vector<double>& top() const { return top_; }
+
   // Highest material within R (and one cell) of the segment a-b (xy).
   double highest_near(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const {
     double best = -kInf;
@@ -203,13 +216,15 @@ double loop_length(const Loop& l) {
 }
 
 // Step 4: the offset contours of one level, grouped by free component.
+// `work` (rest machining; empty: everywhere): where the tool centre has material to cut.
 std::vector<Loop> level_loops(const std::vector<double>& t, const Grid& g, double z, double d0, double step_over, double simplify,
-                              MillingDirection dir, cv::Mat& dist_mm) {
+                              MillingDirection dir, const cv::Mat& work, cv::Mat& dist_mm) {
   cv::Mat free(g.ny, g.nx, CV_8U);
   for (int j = 0; j < g.ny; ++j) {
     for (int i = 0; i < g.nx; ++i) {
       const bool border = i == 0 || j == 0 || i == g.nx - 1 || j == g.ny - 1;
-      free.at<unsigned char>(j, i) = !border && t[g.at(i, j)] <= z + 1e-9 ? 255 : 0;
+      const bool wanted = work.empty() || work.at<unsigned char>(j, i) != 0;
+      free.at<unsigned char>(j, i) = !border && wanted && t[g.at(i, j)] <= z + 1e-9 ? 255 : 0;
     }
   }
   cv::Mat dist;
@@ -572,6 +587,12 @@ void validate(const RoughingOptions& o) {
     throw UsageError("--step-over-mm must be at most the tool radius (0: 40 % of the diameter)");
   }
   if (!(o.allowance_mm >= 0) || !std::isfinite(o.allowance_mm)) throw UsageError("--allowance-mm must be >= 0");
+  if (!(o.rest_min_mm > 0) || !std::isfinite(o.rest_min_mm)) throw UsageError("--rest-min-mm must be a positive number");
+  for (const PriorCut& prior : o.rest_after) {
+    if (!(prior.cutter.radius_mm > 0) || !(prior.cutter.corner_radius_mm >= 0) || prior.cutter.corner_radius_mm > prior.cutter.radius_mm) {
+      throw UsageError("--rest-after: the earlier program's cutter must have a diameter > 0 and a corner radius within its radius");
+    }
+  }
   if (!(o.stock_margin_mm >= 0) || !std::isfinite(o.stock_margin_mm)) throw UsageError("--stock-margin-mm must be >= 0");
   if (!(o.ramp_angle_deg > 0 && o.ramp_angle_deg <= 30)) throw UsageError("--ramp-angle-deg must be in (0, 30]");
   if (!(o.helix_radius_mm >= 0) || !std::isfinite(o.helix_radius_mm)) throw UsageError("--helix-radius-mm must be >= 0");
@@ -729,16 +750,53 @@ RoughingResult generate_roughing(const BSplineSurface& surface, const RoughingOp
 
   Writer w(r, o, st.safe_z_mm);
   Material material(g, stock, R, rc);
+  for (const PriorCut& prior : o.rest_after) material.cut_by(prior.cl, prior.cutter, threads);
   const double d0 = g.cell + o.simplify_mm;
   LevelCutter cutter(g, o, R, step_over, material, w, st);
   w.rapid({stock.min_mm.x() - R - 1, stock.min_mm.y() - R - 1, st.safe_z_mm});
   for (double z : levels) {
+    cv::Mat work;
+    if (!o.rest_after.empty()) {
+      // Material this tool can take at this level: standing more than rest_min above it, within
+      // R - the simplification of where its centre can go (the free region deeper than d0, where the loops
+      // run). The loops are kept to the centres within R + step-over of that material.
+      cv::Mat centres(g.ny, g.nx, CV_8U);
+      for (int j = 0; j < g.ny; ++j) {
+        for (int i = 0; i < g.nx; ++i) {
+          const bool border = i == 0 || j == 0 || i == g.nx - 1 || j == g.ny - 1;
+          centres.at<unsigned char>(j, i) = !border && t[g.at(i, j)] <= z + 1e-9 ? 255 : 0;
+        }
+      }
+      cv::Mat depth;
+      cv::distanceTransform(centres, depth, cv::DIST_L2, cv::DIST_MASK_PRECISE, CV_32F);
+      cv::Mat not_centre = depth * g.cell < d0;  // 255 where no loop centre can be
+      cv::Mat to_centre;
+      cv::distanceTransform(not_centre, to_centre, cv::DIST_L2, cv::DIST_MASK_PRECISE, CV_32F);
+      cv::Mat none(g.ny, g.nx, CV_8U);
+      bool any = false;
+      for (int j = 0; j < g.ny; ++j) {
+        for (int i = 0; i < g.nx; ++i) {
+          const bool left = material.top()[g.at(i, j)] > z + o.rest_min_mm && to_centre.at<float>(j, i) * g.cell < R - o.simplify_mm;
+          none.at<unsigned char>(j, i) = left ? 0 : 255;
+          any = any || left;
+        }
+      }
+      if (!any) continue;
+      cv::Mat dist;
+      cv::distanceTransform(none, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE, CV_32F);
+      work = dist * g.cell < R + step_over;
+    }
     cv::Mat dist_mm;
-    const std::vector<Loop> loops = level_loops(t, g, z, d0, step_over, o.simplify_mm, o.direction, dist_mm);
+    const std::vector<Loop> loops = level_loops(t, g, z, d0, step_over, o.simplify_mm, o.direction, work, dist_mm);
+    if (!o.rest_after.empty() && !loops.empty()) ++st.rest_levels;
     cutter.cut_level(loops, dist_mm, z);
     w.retract();
   }
   w.retract();
+  if (st.loops == 0 && !o.rest_after.empty()) {
+    throw GeometryError("roughing: nothing left to cut: the earlier programs left no material more than " + mm(o.rest_min_mm) +
+                        " mm above any level that this tool can reach");
+  }
   if (st.loops == 0) {
     throw GeometryError(levels.empty() ? "roughing: nothing to cut: the stock's top (" + mm(stock.max_mm.z()) +
                                              " mm) is not above the surface + allowance anywhere inside it (lowest " + mm(tmin) + " mm)"

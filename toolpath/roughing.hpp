@@ -28,6 +28,10 @@
 //  5. Each free component is cut from its innermost contour outwards (largest D first), so every
 //     loop cuts at most one step-over of material on one side. Climb milling with an M3 spindle
 //     keeps the material on the cutter's right: outer loops counter-clockwise, holes clockwise.
+//  7. Rest machining (`rest_after`): the material's top starts as the stock cut by earlier
+//     programs (cut_material, their own cutters), and at each level the free region is kept only
+//     within R + step-over of nodes whose material still stands more than `rest_min_mm` above
+//     the level: a smaller tool clears what a larger one could not reach, and nothing else.
 //  6. Entries never plunge into material: a material-height map (stock top, lowered by every cut)
 //     says whether the tool can go straight down (air, or cleared by an earlier level) or must
 //     ramp down along its loop at `ramp_angle_deg` (or helix down, `helix_radius_mm`, on a loop
@@ -60,6 +64,12 @@ StockBox default_stock_box(const BSplineSurface& surface, double margin_mm, doub
 // "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX" (mm, C locale); throws UsageError naming --stock-box-mm.
 StockBox parse_stock_box(const std::string& text);
 
+// An earlier program on the same stock and the cutter it ran with (rest machining).
+struct PriorCut {
+  ClData cl;
+  Cutter cutter;
+};
+
 struct RoughingOptions {
   double tool_diameter_mm = 6;       // end mill diameter D = 2R
   double corner_radius_mm = 0;       // r_c: 0 flat, 0 < r_c <= R bull-nose
@@ -79,6 +89,8 @@ struct RoughingOptions {
   double cell_mm = 0.2;              // grid spacing
   double simplify_mm = 0;            // path simplification tolerance; 0: half a cell
   std::size_t max_moves = 5000000;   // work limit: more CL moves than this is an error
+  std::vector<PriorCut> rest_after;  // rest machining: clear only what these programs left
+  double rest_min_mm = 0.05;         // rest machining: thinner material above a level is left
   int threads = 0;
   std::string part_name = "photomill";
   std::optional<double> spindle_rpm;
@@ -93,6 +105,7 @@ struct RoughingStats {
   std::size_t loops = 0;           // offset contours cut
   std::size_t ramps = 0, helices = 0, straight_entries = 0, links = 0;
   std::size_t skipped_loops = 0;   // loops no ramp or helix could enter (material left there)
+  std::size_t rest_levels = 0;     // rest machining: levels with material left to clear
   double feed_length_mm = 0, rapid_length_mm = 0;
   double cycle_time_min = 0;       // feed length / feed + descents / plunge feed (no rapids)
   double safe_z_mm = 0;

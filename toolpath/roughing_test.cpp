@@ -162,6 +162,45 @@ TEST(Roughing, NeverPlungesOrRapidsIntoMaterial) {
   EXPECT_EQ(plunges_into_material(r.cl, r.stats.stock, {3, 0}, o.ramp_angle_deg, first), 0u) << first;
 }
 
+// Rest machining: after a 12 mm end mill, a 4 mm one clears only what the first left. Together
+// they leave what the 4 mm tool alone leaves (its own stairs and corners), with a fraction of
+// its path (rough_cli_test replays both in cutsim: no plunge, no rapid into material); after the
+// same program with the same tool there is nothing left to clear.
+TEST(Roughing, RestMachiningClearsOnlyWhatTheLargerToolLeft) {
+  const BSplineSurface dome = dome_surface();
+  RoughingOptions big = quick_options();
+  big.tool_diameter_mm = 12;
+  big.step_down_mm = 3;
+  const RoughingResult first = generate_roughing(dome, big);
+  RoughingOptions small = quick_options();
+  small.tool_diameter_mm = 4;
+  small.step_down_mm = 1;
+  small.stock = first.stats.stock;
+  const RoughingResult alone = generate_roughing(dome, small);
+  small.rest_after.push_back({first.cl, {6, 0}});
+  const RoughingResult rest = generate_roughing(dome, small);
+  EXPECT_GT(rest.stats.rest_levels, 0u);
+  EXPECT_LT(rest.stats.feed_length_mm, 0.6 * alone.stats.feed_length_mm);
+  const StockCheck after_first = check_stock(dome, first.stats.stock, {{&first.cl, {6, 0}}}, 0.5, 0.25, 0);
+  const StockCheck both = check_stock(dome, first.stats.stock, {{&first.cl, {6, 0}}, {&rest.cl, {2, 0}}}, 0.5, 0.25, 0);
+  const StockCheck only_small = check_stock(dome, first.stats.stock, {{&alone.cl, {2, 0}}}, 0.5, 0.25, 0);
+  EXPECT_LT(both.p95_left_mm, after_first.p95_left_mm - 0.5);
+  EXPECT_NEAR(both.p95_left_mm, only_small.p95_left_mm, 0.1);
+  EXPECT_LT(both.max_left_mm, only_small.max_left_mm + 0.25);
+  EXPECT_LT(both.max_into_allowance_mm, 0.01);
+  RoughingOptions again = big;
+  again.rest_after.push_back({first.cl, {6, 0}});
+  again.stock = first.stats.stock;
+  try {
+    generate_roughing(dome, again);
+    ADD_FAILURE() << "the same tool after itself found material to cut";
+  } catch (const GeometryError& e) {
+    EXPECT_NE(std::string(e.what()).find("nothing left to cut"), std::string::npos) << e.what();
+  }
+  again.rest_min_mm = 0;
+  EXPECT_THROW(validate(again), UsageError);
+}
+
 TEST(Roughing, BullNoseAndAGivenStock) {
   const BSplineSurface dome = dome_surface();
   RoughingOptions o = quick_options();
