@@ -842,8 +842,8 @@ std::vector<BSplineSurface> read_iges(const std::string& path) { return read_par
 std::vector<BSplineSurface> read_cad(const std::string& path) { return read_part(path, kind_of(path), 0).faces; }
 
 CadPart read_cad_part(const std::string& path, double mesh_deflection_mm, bool mesh_one_face) {
-  if (!(mesh_deflection_mm > 0) || !std::isfinite(mesh_deflection_mm)) {
-    throw InputError(path, 0, "the mesh deflection must be > 0 mm");
+  if (!(mesh_deflection_mm >= 0) || !std::isfinite(mesh_deflection_mm)) {
+    throw InputError(path, 0, "the mesh deflection must be >= 0 mm (0: no mesh)");
   }
   return read_part(path, kind_of(path), mesh_deflection_mm, mesh_one_face);
 }

@@ -57,9 +57,9 @@ struct CadPart {
   std::vector<std::array<int, 3>> mesh_triangles;  // indices into mesh_vertices
   std::vector<int> triangle_face;                // the face of each triangle
 };
-// A file of one face is meshed only when `mesh_one_face` (nothing else to check it against).
-// Throws InputError as read_cad does, and for a deflection that is not > 0 or a face that Open
-// CASCADE could not mesh.
+// A file of one face is meshed only when `mesh_one_face` (nothing else to check it against);
+// a deflection of 0 meshes nothing. Throws InputError as read_cad does, and for a negative or
+// non-finite deflection or a face that Open CASCADE could not mesh.
 CadPart read_cad_part(const std::string& path, double mesh_deflection_mm, bool mesh_one_face = false);
 
 }  // namespace photomill

@@ -561,7 +561,9 @@ TEST(Cad, PartFacesPointOutwardsAndMeshTheSolid) {
   write_step(plane, dir.file("plane.step"));
   EXPECT_TRUE(read_cad_part(dir.file("plane.step"), 0.01).mesh_triangles.empty());
   EXPECT_GE(read_cad_part(dir.file("plane.step"), 0.01, true).mesh_triangles.size(), 2u);
-  EXPECT_THROW(read_cad_part(dir.file("box.step"), 0), InputError);
+  EXPECT_TRUE(read_cad_part(dir.file("box.step"), 0).mesh_triangles.empty());
+  EXPECT_EQ(read_cad_part(dir.file("box.step"), 0).reversed, part.reversed);
+  EXPECT_THROW(read_cad_part(dir.file("box.step"), -1), InputError);
   EXPECT_THROW(read_cad_part(dir.file("box.step"), std::nan("")), InputError);
 }
 

@@ -233,6 +233,14 @@ TEST(FilletedBox, AllUpwardFacesInOneRunCheckedAgainstTheSolid) {
   EXPECT_LE(number("verify.p95_left_normal_mm"), 0.01);
   EXPECT_LE(number("verify.max_left_normal_mm"), 0.0101);
   EXPECT_GT(number("verify.nodes"), 500000);
+  // One face of it: the underside is machined with a warning that it faces down; a wall is refused.
+  const ToolResult under = run_tool("toolpath", quick({"--face", "3", box.string()}));
+  EXPECT_EQ(under.exit_code, 0) << under.err;
+  EXPECT_NE(under.err.find("face 3 faces down in its part"), std::string::npos) << under.err;
+  const ToolResult wall = run_tool("toolpath", quick({"--face", "0", box.string()}));
+  EXPECT_EQ(wall.exit_code, 1);
+  EXPECT_NE(wall.err.find("vertical wall"), std::string::npos) << wall.err;
+  EXPECT_TRUE(wall.out.empty());
   // The program posts, spindle first.
   const ToolResult g = run_tool("clpost", {cl.string()});
   EXPECT_EQ(g.exit_code, 0) << g.err;

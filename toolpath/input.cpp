@@ -61,7 +61,8 @@ private:
   std::string path_;
 };
 
-LoadedSurface pick(std::vector<BSplineSurface> faces, std::optional<std::size_t> face, const std::string& source) {
+LoadedSurface pick(CadPart part, std::optional<std::size_t> face, const std::string& source) {
+  std::vector<BSplineSurface>& faces = part.faces;
   if (faces.empty()) throw InputError(source, 0, "no faces");
   LoadedSurface out;
   out.faces = faces.size();
@@ -73,6 +74,18 @@ LoadedSurface pick(std::vector<BSplineSurface> faces, std::optional<std::size_t>
   if (!face && faces.size() > 1) {
     log::warn(source + " has " + std::to_string(faces.size()) + " faces; using face 0 (choose one with --face N, or machine the whole part with --all-faces)");
   }
+  // In a part of several faces, a face's orientation in its shell says where the material is:
+  // one that faces down (or is a wall) cannot be finished from above, whichever way it is
+  // parameterized. (A lone face says nothing: photomill's own STEP surfaces are one face.)
+  if (faces.size() > 1) {
+    const BSplineSurface outward = part.reversed[out.face] ? mirrored_u(faces[out.face]) : faces[out.face];
+    const SurfaceFacing f = surface_facing(outward);
+    if (f.down_mm2 > f.up_mm2) {
+      log::warn(source + ": face " + std::to_string(out.face) +
+                " faces down in its part (its outward normal points down): machined from above, the tool comes from the "
+                "material's side (--all-faces reports such faces instead)");
+    }
+  }
   out.surface = std::move(faces[out.face]);
   return out;
 }
@@ -81,13 +94,13 @@ LoadedSurface pick(std::vector<BSplineSurface> faces, std::optional<std::size_t>
 
 LoadedSurface load_surface(const std::string& path, std::optional<std::size_t> face) {
   const std::string source = tool::source_name(path);
-  if (path != "-" && cad_extension(path)) return pick(read_cad(path), face, source);
+  if (path != "-" && cad_extension(path)) return pick(read_cad_part(path, 0), face, source);
   const std::string data = tool::read_all(path, kMaxInputBytes);
   if (looks_like_cad(std::string_view(data).substr(0, 1024))) {
-    if (path != "-") return pick(read_cad(path), face, source);
+    if (path != "-") return pick(read_cad_part(path, 0), face, source);
     const TempFile tmp(data);
     try {
-      return pick(read_cad(tmp.path()), face, source);
+      return pick(read_cad_part(tmp.path(), 0), face, source);
     } catch (const InputError& e) {
       throw InputError(source, e.line(), e.message());
     }
