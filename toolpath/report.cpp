@@ -28,6 +28,15 @@ std::string point(const Eigen::Vector3d& p) {
   return s.str();
 }
 
+// The tolerances both reports start their options with.
+void tolerance_fields(JsonWriter& j, const ToolpathOptions& o) {
+  j.field("tool_radius_mm", o.tool_radius_mm);
+  j.field("scallop_mm", o.scallop_mm);
+  j.field("chord_tol_mm", o.chord_tol_mm);
+  j.field("gouge_tol_mm", o.gouge_tol_mm);
+  j.field("stock_mm", o.stock_mm);
+}
+
 }  // namespace
 
 void write_report(std::ostream& out, const ReportContext& c) {
@@ -42,11 +51,7 @@ void write_report(std::ostream& out, const ReportContext& c) {
   j.field("face", c.face);
   j.field("faces", c.faces);
   j.key("options").begin_object();
-  j.field("tool_radius_mm", o.tool_radius_mm);
-  j.field("scallop_mm", o.scallop_mm);
-  j.field("chord_tol_mm", o.chord_tol_mm);
-  j.field("gouge_tol_mm", o.gouge_tol_mm);
-  j.field("stock_mm", o.stock_mm);
+  tolerance_fields(j, o);
   j.field("direction", c.direction);
   j.field("pattern", c.pattern);
   j.field("lift", o.lift);
@@ -159,11 +164,7 @@ void write_part_report(std::ostream& out, const std::string& input, const Toolpa
   j.field("input", input);
   j.field("all_faces", true);
   j.key("options").begin_object();
-  j.field("tool_radius_mm", o.tool_radius_mm);
-  j.field("scallop_mm", o.scallop_mm);
-  j.field("chord_tol_mm", o.chord_tol_mm);
-  j.field("gouge_tol_mm", o.gouge_tol_mm);
-  j.field("stock_mm", o.stock_mm);
+  tolerance_fields(j, o);
   j.field("mesh_tol_mm", mesh_tol_mm);
   j.field("safe_z_mm", r.safe_z_mm);
   j.end_object();
