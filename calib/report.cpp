@@ -8,6 +8,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "formats/run.hpp"
 #include "formats/json.hpp"
 #include "formats/plot.hpp"
 
@@ -108,6 +109,7 @@ void write_json_report(std::ostream& out, const CalibResult& r, const CalibOptio
   const auto& u = r.uncertainty;
   j.begin_object();
   j.field("tool", "calib");
+  j.field("run_id", run_id());
   j.field("method", to_string(r.method));
   j.field("optimizer", r.stats.optimizer);
   j.field("image_width_px", c.image_width_px);

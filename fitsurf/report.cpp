@@ -2,6 +2,7 @@
 #include "fitsurf/report.hpp"
 
 #include "fitsurf/numbers.hpp"
+#include "formats/run.hpp"
 #include "formats/json.hpp"
 
 namespace photomill::fitsurf {
@@ -48,6 +49,7 @@ void write_report(std::ostream& out, const Result& r, const Options& o, const st
   JsonWriter j(out);
   j.begin_object();
   j.field("tool", "fitsurf");
+  j.field("run_id", run_id());
   j.field("input", source);
   j.field("input_points", r.input_points);
   j.field("units", r.units);

@@ -9,6 +9,7 @@
 #include <string_view>
 
 #include "formats/error.hpp"
+#include "formats/run.hpp"
 #include "formats/text.hpp"
 
 namespace photomill {
@@ -393,7 +394,7 @@ void write_camera_yaml(std::ostream& out, const Camera& camera) {
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) k[static_cast<std::size_t>(r * 3 + c)] = camera.camera_matrix(r, c);
   }
-  std::string text = "%YAML:1.0\n---\n";
+  std::string text = "%YAML:1.0\n---\n" + stamp_line(std::nullopt);
   text += "image_width: " + std::to_string(camera.image_width_px) + "\n";
   text += "image_height: " + std::to_string(camera.image_height_px) + "\n";
   text += matrix("camera_matrix", 3, 3, k);

@@ -8,6 +8,7 @@
 
 #include "formats/csv.hpp"
 #include "formats/error.hpp"
+#include "formats/run.hpp"
 #include "formats/text.hpp"
 #include "formats/magnitude.hpp"
 
@@ -55,7 +56,7 @@ std::string fixed(double value) {
 void write_cl_apt(std::ostream& out, const ClData& cl) {
   if (cl.part_name.find_first_of("\r\n") != std::string::npos) throw std::invalid_argument("part name with a line break");
   for (const auto& m : cl.moves) check_move(m);
-  std::string t = "$$ photomill CL data v1: tool tip positions, mm\n";
+  std::string t = "$$ photomill CL data v1: tool tip positions, mm\n$$ photomill run=" + run_id() + "\n";
   t += "PARTNO/" + cl.part_name + "\n";
   t += "UNITS/MM\n";
   if (cl.tool_diameter_mm > 0) {  // unknown tool (e.g. from CSV): no tool records
@@ -193,6 +194,7 @@ ClData read_cl_apt(std::istream& in, const std::string& source) {
 }
 
 void write_cl_csv(std::ostream& out, const ClData& cl) {
+  out << stamp_line(cl.moves.size());
   write_csv_row(out, {"move", "x_mm", "y_mm", "z_mm", "i", "j", "k", "feed_mm_per_min"});
   for (const auto& m : cl.moves) {
     check_move(m);

@@ -47,7 +47,12 @@ TEST(ClApt, WritesFixedPointNumbersAndTheToolRecords) {
   std::stringstream s;
   write_cl_apt(s, cl);
   const std::string text = s.str();
-  EXPECT_FALSE(std::regex_search(text, std::regex("[0-9.][eE][-+]?[0-9]"))) << text;
+  std::string records;  // the text without its '$$' comments (the run id's hex may hold an 'e')
+  std::istringstream lines(text);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind("$$", 0) != 0) records += line + "\n";
+  }
+  EXPECT_FALSE(std::regex_search(records, std::regex("[0-9.][eE][-+]?[0-9]"))) << text;
   EXPECT_NE(text.find("GOTO/-0.0000576,0.0000"), std::string::npos) << text;
   EXPECT_NE(text.find(",-123456789.125\n"), std::string::npos) << text;
   EXPECT_NE(text.find("GOTO/-70,0.000000001,12.5,0,0,1\n"), std::string::npos) << text;

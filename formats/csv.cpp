@@ -20,6 +20,7 @@ CsvReader::CsvReader(std::istream& in, std::string source, std::vector<std::stri
   if (!header) {
     throw InputError(lines_.source(), 0, "empty input: expected a CSV header naming the columns");
   }
+  lines_.uncount_row();  // the column header is not one of the rows a stamp counts
   const auto columns = split_fields(*header, ',');
   header_columns_ = columns.size();
   for (std::size_t c = 0; c < columns.size(); ++c) {

@@ -33,6 +33,8 @@ public:
 
   std::size_t line_number() const { return lines_.line_number(); }
   const std::string& source() const { return lines_.source(); }
+  // The run= of the stamp the current row follows (formats/run.hpp); empty if none.
+  const std::string& run_id() const { return lines_.run_id(); }
   [[noreturn]] void fail(const std::string& message) const { lines_.fail(message); }
 
 private:

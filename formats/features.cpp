@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "formats/error.hpp"
+#include "formats/run.hpp"
 #include "formats/text.hpp"
 #include "formats/magnitude.hpp"
 
@@ -73,6 +74,7 @@ FeatureSet read_features(std::istream& in, const std::string& source, FeatureLim
     }
   }
   if (lines.next()) lines.fail("more features than 'count' says");
+  fs.run_id = lines.run_id();
   return fs;
 }
 
@@ -81,7 +83,7 @@ void write_features(std::ostream& out, const FeatureSet& fs) {
   if (fs.descriptors.size() != fs.keypoints.size() * static_cast<std::size_t>(fs.descriptor_dim)) {
     throw std::invalid_argument("descriptor count does not match keypoints");
   }
-  std::string t = "photomill-features v1\nimage " + fs.image + "\nsize " + std::to_string(fs.image_width_px) + " " +
+  std::string t = "photomill-features v1\n" + stamp_line(std::nullopt) + "image " + fs.image + "\nsize " + std::to_string(fs.image_width_px) + " " +
                   std::to_string(fs.image_height_px) + "\ncount " + std::to_string(fs.keypoints.size()) +
                   "\ndim " + std::to_string(fs.descriptor_dim) + "\n# x_px y_px size_px angle_deg response descriptor...\n";
   const std::size_t dim = static_cast<std::size_t>(fs.descriptor_dim);

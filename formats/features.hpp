@@ -28,6 +28,9 @@ struct FeatureSet {
   int descriptor_dim = 128;
   std::vector<Keypoint> keypoints;
   std::vector<std::uint8_t> descriptors;  // keypoints.size() * descriptor_dim, row-major
+  // The run of detect that wrote the file (its stamp, formats/run.hpp): read, not written (the
+  // writer stamps the current run's); empty if the file has none.
+  std::string run_id;
   bool operator==(const FeatureSet&) const = default;
 };
 

@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "formats/error.hpp"
+#include "formats/run.hpp"
 #include "formats/text.hpp"
 #include "formats/magnitude.hpp"
 
@@ -413,6 +414,7 @@ void write_ply(std::ostream& out, const PointCloud& cloud, PlyEncoding encoding,
   text += " 1.0\ncomment " + std::string(kUnitsComment) + cloud.units +
           (cloud.units == "arbitrary" ? ": not mm, no datum (control points, scale bars or known poses) fixed the scale" : "") +
           "\n";
+  text += "comment photomill run=" + run_id() + "\n";
   if (!comment.empty() && comment.find('\n') == std::string::npos) text += "comment " + comment + "\n";
   text += "element vertex " + std::to_string(n) + "\n";
   const char* xyz_type = info(cloud.xyz_type).canonical;
@@ -458,6 +460,7 @@ PointCloud read_xyz(std::istream& in, const std::string& source, PointCloudLimit
     if (first && !f.empty() && !parse_double(f[0]) &&
         std::all_of(f[0].begin(), f[0].end(), [](char c) { return std::isalpha(static_cast<unsigned char>(c)) || c == '/' || c == '_'; })) {
       first = false;  // a column-name header such as "x y z" or "//X Y Z"
+      lines.uncount_row();
       continue;
     }
     first = false;
@@ -474,7 +477,7 @@ PointCloud read_xyz(std::istream& in, const std::string& source, PointCloudLimit
 }
 
 void write_xyz(std::ostream& out, const PointCloud& cloud) {
-  std::string text;
+  std::string text = stamp_line(cloud.points_mm.size());
   for (const auto& p : cloud.points_mm) {
     if (!p.allFinite()) throw std::invalid_argument("cannot write a non-finite point");
     append_double(text, p.x());

@@ -5,6 +5,7 @@
 #include <tuple>
 
 #include "formats/error.hpp"
+#include "formats/run.hpp"
 #include "formats/text.hpp"
 #include "formats/magnitude.hpp"
 
@@ -201,7 +202,7 @@ BSplineSurface read_surface(std::istream& in, const std::string& source) {
 
 void write_surface(std::ostream& out, const BSplineSurface& s) {
   validate_surface(s, "surface to write");
-  std::string text = "photomill-surface v1\n";
+  std::string text = "photomill-surface v1\n" + stamp_line(std::nullopt);
   text += "degrees " + std::to_string(s.degree_u) + " " + std::to_string(s.degree_v) + "\n";
   text += "poles " + std::to_string(s.num_poles_u) + " " + std::to_string(s.num_poles_v) + "\n";
   text += std::string("rational ") + (s.rational() ? "1" : "0") + "\n";

@@ -7,6 +7,7 @@
 
 #include "formats/csv.hpp"
 #include "formats/error.hpp"
+#include "formats/run.hpp"
 
 namespace photomill {
 namespace {
@@ -30,6 +31,11 @@ std::string image_name(const std::string& image) {
 
 // --- observations: image,point_id,u_px,v_px -------------------------------------------------
 std::vector<Observation> read_observations(std::istream& in, const std::string& source) {
+  return read_observations_with_runs(in, source, nullptr);
+}
+
+std::vector<Observation> read_observations_with_runs(std::istream& in, const std::string& source,
+                                                     std::map<std::string, std::string>* run_of_image) {
   CsvReader csv(in, source, {"image", "point_id", "u_px", "v_px"});
   std::vector<Observation> out;
   std::set<std::pair<std::string, PointId>> seen;
@@ -39,12 +45,19 @@ std::vector<Observation> read_observations(std::istream& in, const std::string& 
     if (!seen.emplace(o.image, o.point_id).second) {
       csv.fail("point " + std::to_string(o.point_id) + " observed twice in image '" + o.image + "'");
     }
+    if (run_of_image != nullptr && !csv.run_id().empty()) {
+      const auto [at, added] = run_of_image->emplace(o.image, csv.run_id());
+      if (!added && at->second != csv.run_id()) {
+        csv.fail("image '" + o.image + "' has observations from two runs (" + at->second + ", " + csv.run_id() + ")");
+      }
+    }
     out.push_back(std::move(o));
   }
   return out;
 }
 
 void write_observations(std::ostream& out, const std::vector<Observation>& observations) {
+  out << stamp_line(observations.size());
   write_csv_row(out, {"image", "point_id", "u_px", "v_px"});
   for (const auto& o : observations) {
     write_csv_row(out, {image_name(o.image), id(o.point_id), num(o.u_px), num(o.v_px)});
@@ -77,6 +90,7 @@ void write_control_points(std::ostream& out, const std::vector<ControlPoint>& po
   for (const auto& p : points) any_sigma = any_sigma || p.sigma_mm.has_value();
   std::vector<std::string> header{"point_id", "x_mm", "y_mm", "z_mm"};
   if (any_sigma) header.push_back("sigma_mm");
+  out << stamp_line(points.size());
   write_csv_row(out, header);
   for (const auto& p : points) {
     std::vector<std::string> row{id(p.point_id), num(p.xyz_mm.x()), num(p.xyz_mm.y()),
@@ -111,6 +125,7 @@ void write_tracks(std::ostream& out, const std::vector<TrackObservation>& tracks
   for (const auto& t : tracks) any_size = any_size || t.size_px.has_value();
   std::vector<std::string> header{"track_id", "image", "u_px", "v_px"};
   if (any_size) header.push_back("size_px");
+  out << stamp_line(tracks.size());
   write_csv_row(out, header);
   for (const auto& t : tracks) {
     std::vector<std::string> row{id(t.track_id), image_name(t.image), num(t.u_px), num(t.v_px)};
@@ -148,6 +163,7 @@ std::vector<Pose> read_poses_numbered(std::istream& in, const std::string& sourc
 }
 
 void write_poses(std::ostream& out, const std::vector<Pose>& poses) {
+  out << stamp_line(poses.size());
   write_csv_row(out, {"image", "qw", "qx", "qy", "qz", "tx_mm", "ty_mm", "tz_mm"});
   for (const auto& p : poses) {
     const auto& q = p.cam_from_world_rotation;
@@ -179,6 +195,7 @@ void write_scale_bars(std::ostream& out, const std::vector<ScaleBar>& bars) {
   for (const auto& b : bars) any_sigma = any_sigma || b.sigma_mm.has_value();
   std::vector<std::string> header{"point_a", "point_b", "distance_mm"};
   if (any_sigma) header.push_back("sigma_mm");
+  out << stamp_line(bars.size());
   write_csv_row(out, header);
   for (const auto& b : bars) {
     std::vector<std::string> row{id(b.point_a), id(b.point_b), num(b.distance_mm)};

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <istream>
+#include <map>
 #include <optional>
 #include <ostream>
 #include <string>
@@ -78,6 +79,10 @@ struct ScaleBar {
 };
 
 std::vector<Observation> read_observations(std::istream& in, const std::string& source);
+// The same; `run_of_image` receives, for each image whose rows follow a stamp with a run id
+// (formats/run.hpp), that run (a file joined from per-photo files holds a stamp per photo).
+std::vector<Observation> read_observations_with_runs(std::istream& in, const std::string& source,
+                                                     std::map<std::string, std::string>* run_of_image);
 void write_observations(std::ostream& out, const std::vector<Observation>& observations);
 
 std::vector<ControlPoint> read_control_points(std::istream& in, const std::string& source);

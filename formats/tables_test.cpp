@@ -2,8 +2,10 @@
 // format (observations, control points, tracks, poses, scale bars).
 #include "formats/tables.hpp"
 
+#include <cctype>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include <gtest/gtest.h>
@@ -152,6 +154,32 @@ TYPED_TEST(TableFormatTest, MissingColumnIsNamed) {
   EXPECT_NE(e.find("t.csv:1: header lacks column"), std::string::npos) << e;
 }
 
+// Issue #25: a file photomill wrote opens with a stamp announcing its rows; one cut at a line
+// boundary, or inside its last line, or holding more rows, is refused naming the stamp's line.
+TYPED_TEST(TableFormatTest, AStampedFileCutShortIsRefused) {
+  std::ostringstream out;
+  TypeParam::write(out, TypeParam::sample());
+  const std::string whole = out.str();
+  ASSERT_EQ(whole.rfind("# photomill run=", 0), 0u) << whole;
+  ASSERT_NE(whole.find(" rows=" + std::to_string(TypeParam::sample().size()) + "\n"), std::string::npos) << whole;
+  const std::string without_last_row = whole.substr(0, whole.rfind('\n', whole.size() - 2) + 1);
+  EXPECT_NE(error_of<TypeParam>(without_last_row).find("t.csv:1: its stamp announces"), std::string::npos)
+      << error_of<TypeParam>(without_last_row);
+  EXPECT_NE(error_of<TypeParam>(without_last_row).find("cut short"), std::string::npos);
+  const std::string without_line_end = whole.substr(0, whole.size() - 1);
+  EXPECT_NE(error_of<TypeParam>(without_line_end).find("no line end"), std::string::npos)
+      << error_of<TypeParam>(without_line_end);
+  const std::string cut_in_last_field = whole.substr(0, whole.size() - 3);  // "855.957" read as "855.9"
+  EXPECT_NE(error_of<TypeParam>(cut_in_last_field), "no error");
+  const std::size_t n = TypeParam::sample().size();
+  std::string one_fewer_announced = whole;
+  one_fewer_announced.replace(whole.find(" rows="), 7 + std::to_string(n).size(), " rows=" + std::to_string(n - 1) + "\n");
+  EXPECT_NE(error_of<TypeParam>(one_fewer_announced).find("rows were added"), std::string::npos)
+      << error_of<TypeParam>(one_fewer_announced);
+  // Without its stamp the same rows read as any other tool's file: the check is the stamp's.
+  EXPECT_NO_THROW(parse<TypeParam>(without_last_row.substr(without_last_row.find('\n') + 1)));
+}
+
 TYPED_TEST(TableFormatTest, ExtraColumnsAnywhereAreIgnored) {
   const std::string text = "extra," + TypeParam::header() + ",note\nzz," + TypeParam::row() + ",hello\n";
   const std::string plain = TypeParam::header() + "\n" + TypeParam::row() + "\n";
@@ -187,7 +215,8 @@ TEST(Tracks, SizeColumnIsOptionalPerRowAndPositive) {
   // Written only when some observation has a size.
   std::ostringstream out;
   write_tracks(out, {{1, "a", 0, 0}});
-  EXPECT_EQ(out.str().substr(0, out.str().find('\n')), "track_id,image,u_px,v_px");
+  const std::string text = out.str().substr(out.str().find('\n') + 1);  // after the stamp
+  EXPECT_EQ(text.substr(0, text.find('\n')), "track_id,image,u_px,v_px");
 }
 
 TEST(ControlPoints, SigmaColumnIsOptionalPerRow) {
@@ -195,6 +224,24 @@ TEST(ControlPoints, SigmaColumnIsOptionalPerRow) {
   ASSERT_EQ(v.size(), 2u);
   EXPECT_FALSE(v[0].sigma_mm);
   EXPECT_EQ(v[1].sigma_mm, 0.5);
+}
+
+// Per-photo observation files joined as Makefile.example joins them (each file's stamp kept, the
+// later files' column headers dropped) read as one, each segment checked, each image's run known.
+TEST(Observations, JoinedPerPhotoFilesKeepEachStampAndRun) {
+  const std::string a = "# photomill run=r1 rows=2\nimage,point_id,u_px,v_px\na.jpg,1,1,1\na.jpg,2,2,2\n";
+  const std::string b = "# photomill run=r2 rows=1\nb.jpg,1,3,3\n";  // its header dropped
+  std::map<std::string, std::string> runs;
+  std::istringstream in(a + b);
+  EXPECT_EQ(read_observations_with_runs(in, "j.csv", &runs).size(), 3u);
+  EXPECT_EQ(runs, (std::map<std::string, std::string>{{"a.jpg", "r1"}, {"b.jpg", "r2"}}));
+  std::istringstream cut(a + "# photomill run=r2 rows=2\nb.jpg,1,3,3\n");
+  try {
+    read_observations(cut, "j.csv");
+    ADD_FAILURE() << "a segment with 1 of its 2 rows was accepted";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), "j.csv:5: its stamp announces 2 rows, 1 follow: the file was cut short");
+  }
 }
 
 }  // namespace

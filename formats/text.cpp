@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "formats/error.hpp"
+#include "formats/run.hpp"
 
 namespace photomill {
 
@@ -27,10 +28,14 @@ bool LineReader::read_raw_line() {
     }
     if (c == std::char_traits<char>::eof()) {
       if (!any) return false;
+      last_line_ended_ = false;
       break;
     }
     any = true;
-    if (c == '\n') break;
+    if (c == '\n') {
+      last_line_ended_ = true;
+      break;
+    }
     if (buffer_.size() >= options_.max_line_bytes) {
       ++line_number_;
       fail("line longer than " + std::to_string(options_.max_line_bytes) + " bytes");
@@ -45,14 +50,48 @@ bool LineReader::read_raw_line() {
 }
 
 std::optional<std::string_view> LineReader::next() {
+  if (ended_) return std::nullopt;
   while (read_raw_line()) {
     if (options_.skip_comments_and_blank) {
       const std::string_view t = trim(buffer_);
-      if (t.empty() || t.front() == '#') continue;
+      if (!t.empty() && t.front() == '#') {
+        if (auto stamp = parse_stamp(t)) {
+          end_segment();
+          stamped_ = true;
+          segment_rows_expected_ = stamp->rows;
+          segment_rows_ = 0;
+          segment_line_ = line_number_;
+          segment_run_ = std::move(stamp->run);
+        }
+        continue;
+      }
+      if (t.empty()) continue;
+      ++segment_rows_;
     }
     return std::string_view(buffer_);
   }
+  ended_ = true;
+  if (stamped_ && !last_line_ended_) {
+    fail("the last line has no line end: the file was cut short (a photomill file ends with one)");
+  }
+  end_segment();
   return std::nullopt;
+}
+
+void LineReader::uncount_row() noexcept {
+  if (stamped_ && segment_rows_ > 0) --segment_rows_;
+}
+
+// A segment's row count against its stamp's.
+void LineReader::end_segment() {
+  if (!segment_rows_expected_ || *segment_rows_expected_ == segment_rows_) return;
+  const std::size_t want = *segment_rows_expected_;
+  const std::string counts = "its stamp announces " + std::to_string(want) + " rows, " +
+                             std::to_string(segment_rows_) + " follow";
+  throw InputError(source_, segment_line_,
+                   segment_rows_ < want ? counts + ": the file was cut short"
+                                        : counts + ": rows were added after the stamp (files joined "
+                                                   "without their stamps?)");
 }
 
 void LineReader::fail(const std::string& message) const {

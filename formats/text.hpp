@@ -32,17 +32,33 @@ public:
   std::optional<std::string_view> next();
   // Line number of the line last returned by next() (1-based).
   std::size_t line_number() const noexcept { return line_number_; }
+  // Stamps (formats/run.hpp; only when comments are skipped): a "# photomill run=ID rows=N"
+  // comment starts a segment of N rows (the lines next() returns up to the next stamp or the
+  // end); at a segment's end a count that differs is an error naming the stamp's line, and a file
+  // holding a stamp must end with a line end (else it was cut inside its last line). A file
+  // without stamps reads as before. uncount_row(): the line last returned was not a row (a CSV's
+  // column header). run_id(): the run= of the current segment, empty if none.
+  void uncount_row() noexcept;
+  const std::string& run_id() const noexcept { return segment_run_; }
   const std::string& source() const noexcept { return source_; }
   // Throws InputError(source, line_number(), message).
   [[noreturn]] void fail(const std::string& message) const;
 
 private:
   bool read_raw_line();
+  void end_segment();
   std::istream& in_;
   std::string source_;
   LineReaderOptions options_;
   std::string buffer_;
   std::size_t line_number_ = 0;
+  bool last_line_ended_ = true;          // the last raw line ended with '\n'
+  bool stamped_ = false;                 // a stamp was seen
+  bool ended_ = false;                   // the end of input was reached and checked
+  std::optional<std::size_t> segment_rows_expected_;
+  std::size_t segment_rows_ = 0;
+  std::size_t segment_line_ = 0;         // the stamp's line
+  std::string segment_run_;
 };
 
 // Splits on a single-character delimiter; fields are trimmed of spaces and tabs. No quoting:

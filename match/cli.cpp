@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <map>
 #include <sstream>
 
 #include <opencv2/imgcodecs.hpp>
@@ -101,6 +102,22 @@ bool is_feature_file(const std::string& text) {
   return text.compare(at, 18, "photomill-features") == 0;
 }
 
+// An image's features and its marker observations, where both carry detect's run id, must come
+// from one run: detect renames its outputs one after the other, and a run killed between two
+// renames leaves one of them from the run before (issue #25).
+void check_same_detect_runs(const std::vector<FeatureSet>& features, const std::vector<std::string>& feature_sources,
+                            const std::map<std::string, std::string>& run_of_image,
+                            const std::map<std::string, std::string>& observations_source) {
+  for (std::size_t k = 0; k < features.size(); ++k) {
+    const auto run = run_of_image.find(features[k].image);
+    if (features[k].run_id.empty() || run == run_of_image.end() || run->second == features[k].run_id) continue;
+    throw InputError(feature_sources[k], 0,
+                     "made by another run of detect (" + features[k].run_id + ") than the observations of '" +
+                         features[k].image + "' in " + observations_source.at(features[k].image) + " (" +
+                         run->second + "): a run was interrupted; run detect on this photo again");
+  }
+}
+
 }  // namespace
 
 MatchInputs read_inputs(Cli& c) {
@@ -118,6 +135,8 @@ MatchInputs read_inputs(Cli& c) {
   }
   if (paths.empty()) paths.push_back("-");
   MatchInputs in;
+  std::map<std::string, std::string> run_of_image, observations_source;
+  std::vector<std::string> feature_sources;  // the detect run of each image's observations
   if (!c.camera.empty()) {
     in.camera = read_camera_yaml(*tool::open_input(c.camera), tool::source_name(c.camera));
   } else {
@@ -128,12 +147,15 @@ MatchInputs read_inputs(Cli& c) {
     std::istringstream stream(text);
     if (is_feature_file(text)) {
       in.features.push_back(read_features(stream, tool::source_name(path)));
+      feature_sources.push_back(tool::source_name(path));
     } else {
-      const auto obs = read_observations(stream, tool::source_name(path));
+      const auto obs = read_observations_with_runs(stream, tool::source_name(path), &run_of_image);
+      for (const auto& [image, run] : run_of_image) observations_source.emplace(image, tool::source_name(path));
       if (in.camera) check_inside_camera_image(obs, tool::source_name(path), *in.camera, tool::source_name(c.camera));
       in.observations.insert(in.observations.end(), obs.begin(), obs.end());
     }
   }
+  check_same_detect_runs(in.features, feature_sources, run_of_image, observations_source);
   if (in.observations.empty() && in.features.empty()) {
     std::string sources;
     for (const auto& path : paths) sources += (sources.empty() ? "" : ", ") + tool::source_name(path);

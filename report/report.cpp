@@ -4,11 +4,13 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <fstream>
 #include <filesystem>
 #include <locale>
 #include <map>
 #include <sstream>
 
+#include "formats/run.hpp"
 #include "formats/error.hpp"
 #include "formats/image.hpp"
 #include "formats/tool.hpp"
@@ -131,14 +133,16 @@ const std::vector<Headline>& headlines() {
 
 const std::vector<KnownFile>& known_reports() {
   static const std::vector<KnownFile> r = {
-      {"calib.json", "calib", "the camera calibration (calib --report)"},
-      {"triangulate.json", "triangulate", "the point cloud and the photos' poses (triangulate --report)"},
-      {"fitsurf.json", "fitsurf", "the B-spline surface fitted to the cloud (fitsurf --report)"},
-      {"toolpath.json", "toolpath", "the finishing tool path (toolpath --report)"},
-      {"markers/triangulate.json", "triangulate", "the markers-only cloud and poses (triangulate --report)", true},
-      {"scan/fitsurf.json", "fitsurf", "the scan goal's surface (fitsurf --report)", true},
-      {"scan/toolpath.json", "toolpath", "the scan goal's tool path (toolpath --report)", true},
-      {"cad/toolpath.json", "toolpath", "the cad goal's tool path (toolpath --report)", true},
+      {"calib.json", "calib", "the camera calibration (calib --report)", false, {"camera.yaml"}},
+      {"triangulate.json", "triangulate", "the point cloud and the photos' poses (triangulate --report)", false,
+       {"cloud.ply", "poses.csv", "camera-refined.yaml"}},
+      {"fitsurf.json", "fitsurf", "the B-spline surface fitted to the cloud (fitsurf --report)", false, {"surface.txt"}},
+      {"toolpath.json", "toolpath", "the finishing tool path (toolpath --report)", false, {"path.cl"}},
+      {"markers/triangulate.json", "triangulate", "the markers-only cloud and poses (triangulate --report)", true,
+       {"markers/cloud.ply", "markers/poses.csv"}},
+      {"scan/fitsurf.json", "fitsurf", "the scan goal's surface (fitsurf --report)", true, {"scan/surface.txt"}},
+      {"scan/toolpath.json", "toolpath", "the scan goal's tool path (toolpath --report)", true, {"scan/path.cl"}},
+      {"cad/toolpath.json", "toolpath", "the cad goal's tool path (toolpath --report)", true, {"cad/path.cl"}},
   };
   return r;
 }
@@ -177,6 +181,28 @@ namespace {
 // The stage reports, by their path in the job folder.
 using Reports = std::map<std::string, JsonValue>;
 
+// A stage renames its outputs one after the other: a run killed between two renames leaves some
+// from the run before. The report and the data files the same run writes must carry one run id
+// (where both carry one: files from before run ids, or from other tools, are not checked).
+void check_one_run(const fs::path& root, const KnownFile& k, const JsonValue& report) {
+  const JsonValue* run = report.find("run_id");
+  if (!run || run->type != JsonValue::Type::String) return;
+  for (const std::string& out : k.outputs) {
+    const fs::path p = root / out;
+    std::error_code ec;
+    if (!fs::is_regular_file(p, ec)) continue;
+    const auto in = tool::open_input(p.string());  // a read error names the file
+    std::string head(4096, '\0');
+    in->read(head.data(), static_cast<std::streamsize>(head.size()));
+    head.resize(static_cast<std::size_t>(in->gcount()));
+    const auto id = find_run_id(head);
+    if (!id || *id == run->string) continue;
+    throw InputError((root / k.path).string(), 0,
+                     "made by another run of " + k.tool + " (" + run->string + ") than " + p.string() + " (" + *id +
+                         "): a run was interrupted between the renames of its outputs; run " + k.tool + " again");
+  }
+}
+
 // The reports: read and checked before anything is written; the main chain's that are absent
 // go to `missing`.
 Reports read_reports(const fs::path& root, std::vector<const KnownFile*>& missing) {
@@ -196,6 +222,7 @@ Reports read_reports(const fs::path& root, std::vector<const KnownFile*>& missin
     if (t->string != k.tool) {
       throw InputError(p.string(), 1, "the report of " + t->string + ", not of " + k.tool + " as its name says");
     }
+    check_one_run(root, k, v);
     reports.emplace(k.path, std::move(v));
   }
   return reports;

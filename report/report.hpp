@@ -29,6 +29,7 @@ struct KnownFile {
   std::string what;     // a caption: what it is and how it was made
   bool optional = false;  // made by a goal besides the main chain (markers/, scan/, cad/): not
                           // named as missing when absent
+  std::vector<std::string> outputs = {};  // a report's: the data files the same run writes
 };
 const std::vector<KnownFile>& known_reports();
 const std::vector<KnownFile>& known_pictures();

@@ -287,6 +287,15 @@ INSTANTIATE_TEST_SUITE_P(
                  write(d / "cloud.png", png.substr(0, png.size() / 2));
                },
                "DIR/cloud.png: truncated PNG: the file ends before its IEND chunk"},
+        // Issue #25: a stage's report and a data file of the same stage from two runs (a run
+        // killed between the renames of its outputs).
+        BadJob{"two_runs",
+               [](const fs::path& d) {
+                 write(d / "fitsurf.json", R"({"tool":"fitsurf","run_id":"run-a"})");
+                 write(d / "surface.txt", "photomill-surface v1\n# photomill run=run-b\n");
+               },
+               "DIR/fitsurf.json: made by another run of fitsurf (run-a) than DIR/surface.txt (run-b): a run was "
+               "interrupted between the renames of its outputs; run fitsurf again"},
         BadJob{"empty_folder", [](const fs::path& d) { fs::remove_all(d), fs::create_directories(d); },
                "DIR: no photomill report or picture here"},
         BadJob{"no_folder", [](const fs::path& d) { fs::remove_all(d); }, "DIR: cannot open: No such file or directory"}),

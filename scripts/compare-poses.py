@@ -40,7 +40,7 @@ def load(path):
     out = {}
     if path.endswith(".csv"):
         with open(path, newline="") as f:
-            for r in csv.DictReader(f):
+            for r in csv.DictReader(ln for ln in f if not ln.startswith("#")):  # a stamp, comments
                 q = [float(r[k]) for k in ("qw", "qx", "qy", "qz")]
                 t = [float(r[k]) for k in ("tx_mm", "ty_mm", "tz_mm")]
                 out[r["image"].replace("\\", "/").split("/")[-1]] = centre(q, t)

@@ -88,7 +88,9 @@ def surface_heights(path, x0, y0, nx, ny, cell):
 
 
 def read_cl(path):
-    rows = np.genfromtxt(path, delimiter=",", skip_header=1, usecols=(1, 2, 3))
+    with open(path) as f:  # photomill's CL CSV: a stamp comment, the column header, the moves
+        lines = [ln for ln in f if ln.strip() and not ln.startswith("#")][1:]
+    rows = np.genfromtxt(lines, delimiter=",", usecols=(1, 2, 3))
     return rows.reshape(-1, 3)
 
 

@@ -37,7 +37,7 @@ const std::vector<std::string> kClasses{
     "truncated",          "wrong column count",       "non-numeric field", "NaN/inf",
     "absurdly large values", "CRLF line ends",         "UTF-8 BOM",     "binary junk",
     "not an image",       "images of different sizes", "duplicate ids", "ids that exist nowhere else",
-    "camera for another image size", "output in a missing folder"};
+    "camera for another image size", "output in a missing folder", "outputs of two runs"};
 
 struct Row {
   std::size_t doc_line = 0;
@@ -149,6 +149,20 @@ std::string truncated_csv(const std::string& text) {
   const std::size_t mid = text.find('\n', text.size() / 2) + 1;
   const std::size_t comma = text.find(',', text.find(',', mid) + 1);
   return text.substr(0, comma);
+}
+
+// As photomill writes it (issue #25): a stamp announcing the rows, then `text` (a header and rows).
+std::string stamped_csv(const std::string& text) {
+  const auto rows = static_cast<std::size_t>(std::count(text.begin(), text.end(), '\n')) - 1;
+  return "# photomill run=fixture rows=" + std::to_string(rows) + "\n" + text;
+}
+
+// A stamped file cut at a line boundary, its last `lines` lines gone (a half copied file whose
+// every line is whole: a reader without the stamp cannot tell).
+std::string cut_lines(const std::string& text, std::size_t lines) {
+  std::size_t end = text.size();
+  for (std::size_t k = 0; k <= lines; ++k) end = text.rfind('\n', end - 1);
+  return text.substr(0, end + 1);
 }
 
 // Replaces field `col` (0-based) of line `line` (1-based) of a CSV.
@@ -319,6 +333,8 @@ void write_fixtures(const fs::path& dir) {
     f[name + ".csv"] = text;
     f[name + "_header.csv"] = header_only(text);
     f[name + "_trunc.csv"] = truncated_csv(text);
+    f[name + "_cut.csv"] = cut_lines(stamped_csv(text), 40);
+    f[name + "_cutfield.csv"] = stamped_csv(text).substr(0, stamped_csv(text).size() - 4);
     f[name + "_cols.csv"] = drop_last_field(text, 5);
     f[name + "_text.csv"] = set_field(text, 5, 2, "12,5");   // a decimal comma: one field too many
     f[name + "_word.csv"] = set_field(text, 5, 2, "left");
@@ -363,6 +379,7 @@ void write_fixtures(const fs::path& dir) {
   f["tracks.csv"] = tracks;
   f["tracks_header.csv"] = header_only(tracks);
   f["tracks_trunc.csv"] = truncated_csv(tracks);
+  f["tracks_cut.csv"] = cut_lines(stamped_csv(tracks), 40);
   f["tracks_cols.csv"] = drop_last_field(tracks, 5);
   f["tracks_word.csv"] = set_field(tracks, 5, 2, "left");
   f["tracks_nan.csv"] = set_field(tracks, 5, 3, "nan");
@@ -457,6 +474,9 @@ void write_fixtures(const fs::path& dir) {
     return t;
   };
   f["a.feat"] = feat("a.png", 64, 48);
+  // a.png's features and observations from two runs of detect (issue #25: a run killed between renames).
+  f["a_run.feat"] = replace_all(feat("a.png", 64, 48), "image a.png", "# photomill run=one\nimage a.png");
+  f["obs_a_run.csv"] = "# photomill run=two rows=2\nimage,point_id,u_px,v_px\na.png,0,10,10\na.png,1,20,10\n";
   f["b_size.feat"] = feat("b.png", 64, 48);      // b.png is 80x60
   f["notimage.feat"] = feat("notimage.png", 64, 48);
   f["missing_image.feat"] = feat("missing.png", 64, 48);

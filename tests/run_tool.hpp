@@ -54,6 +54,9 @@ inline ToolResult run_tool(const std::string& tool, const std::vector<std::strin
     ::dup2(out, 1);
     ::dup2(err, 2);
     if (!cwd.empty() && ::chdir(cwd.c_str()) != 0) ::_exit(126);
+    // One run id for every run of a test (formats/run.hpp): two runs on the same input then write
+    // the same bytes, which the tests of determinism and of options without effect compare.
+    ::setenv("PHOTOMILL_RUN_ID", "test", 0);
     std::vector<char*> argv;
     for (auto& a : argv_s) argv.push_back(a.data());
     argv.push_back(nullptr);

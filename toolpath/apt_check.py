@@ -100,7 +100,7 @@ def parse_apt(path):
 def parse_csv(path):
     moves = []
     with open(path, newline="") as f:
-        for row in csv.DictReader(f):
+        for row in csv.DictReader(ln for ln in f if not ln.startswith("#")):
             xyz = (float(row["x_mm"]), float(row["y_mm"]), float(row["z_mm"]))
             feed = float(row["feed_mm_per_min"]) if row["move"] == "feed" else 0.0
             moves.append((row["move"], xyz, feed))

@@ -91,7 +91,7 @@ INSTANTIATE_TEST_SUITE_P(
         CliCase{"face_of_text_surface", "toolpath", quick({"--face", "2", "-"}), ridge_text(), 2, "", "--face 2"},
         CliCase{"apt_on_stdout", "toolpath", quick({"-"}), ridge_text(), 0, "$$ photomill CL data v1", "passes"},
         CliCase{"csv_on_stdout", "toolpath", quick({"--format", "csv", "-"}), ridge_text(), 0,
-                "move,x_mm,y_mm,z_mm,i,j,k,feed_mm_per_min\nrapid,", ""},
+                "# photomill run=test rows=1720\nmove,x_mm,y_mm,z_mm,i,j,k,feed_mm_per_min\nrapid,", ""},
         CliCase{"quiet", "toolpath", quick({"-q", "-"}), ridge_text(), 0, "$$ photomill CL data v1", ""},
         CliCase{"clpost_tilted_axis", "clpost", {}, kTilted, 1, "", "only +Z"},
         CliCase{"clpost_missing", "clpost", {"no-such.cl"}, "", 1, "", "clpost: no-such.cl"},
@@ -147,7 +147,8 @@ TEST(ToolpathCli, StepAndIgesInputGiveOnlyClDataOnStdout) {
   for (const fs::path& p : {step, iges}) {
     const ToolResult r = run_tool("toolpath", quick({p.string()}));
     EXPECT_EQ(r.exit_code, 0) << r.err;
-    EXPECT_EQ(r.out.rfind("$$ photomill CL data v1: tool tip positions, mm\nPARTNO/", 0), 0u) << r.out.substr(0, 300);
+    EXPECT_EQ(r.out.rfind("$$ photomill CL data v1: tool tip positions, mm\n$$ photomill run=test\nPARTNO/", 0), 0u)
+        << r.out.substr(0, 300);
     // The same surface gives the same path as the photomill text (the CAD round trip is exact
     // to the last digits, so compare the number of moves).
     EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), std::count(text.out.begin(), text.out.end(), '\n')) << p;
@@ -328,7 +329,8 @@ TEST(ClpostRs274, LinuxcncDialectRunsInLinuxcncsInterpreter) {
   {
     std::istringstream rows(photomill::test::read_file(csv));
     std::string line;
-    std::getline(rows, line);
+    do std::getline(rows, line);  // the stamp (a '#' comment), the header
+    while (line.rfind('#', 0) == 0);
     while (std::getline(rows, line)) {
       std::array<double, 3> p{};
       std::sscanf(line.c_str() + line.find(',') + 1, "%lf,%lf,%lf", &p[0], &p[1], &p[2]);

@@ -11,6 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "formats/run.hpp"
 #include "formats/error.hpp"
 #include "formats/json.hpp"
 #include "geometry/parallel.hpp"
@@ -235,6 +236,7 @@ void write_cutsim_report(std::ostream& out, const CutsimResult& r, const CutsimO
   JsonWriter j(out);
   j.begin_object();
   j.field("tool", "cutsim");
+  j.field("run_id", run_id());
   j.field("version", PHOTOMILL_VERSION);
   j.key("options").begin_object();
   j.field("cell_mm", o.cell_mm);

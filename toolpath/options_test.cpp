@@ -61,7 +61,8 @@ std::vector<Row> csv_rows(const std::string& csv) {
   std::vector<Row> rows;
   std::istringstream in(csv);
   std::string line;
-  std::getline(in, line);  // header
+  do std::getline(in, line);  // the stamp (a '#' comment), the header
+  while (line.rfind('#', 0) == 0);
   while (std::getline(in, line)) {
     std::istringstream l(line);
     Row r;

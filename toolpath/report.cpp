@@ -3,6 +3,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "formats/run.hpp"
 #include "formats/json.hpp"
 
 namespace photomill::toolpath {
@@ -46,6 +47,7 @@ void write_report(std::ostream& out, const ReportContext& c) {
   JsonWriter j(out);
   j.begin_object();
   j.field("tool", "toolpath");
+  j.field("run_id", run_id());
   j.field("version", PHOTOMILL_VERSION);
   j.field("input", c.input);
   j.field("face", c.face);
@@ -160,6 +162,7 @@ void write_part_report(std::ostream& out, const std::string& input, const Toolpa
   JsonWriter j(out);
   j.begin_object();
   j.field("tool", "toolpath");
+  j.field("run_id", run_id());
   j.field("version", PHOTOMILL_VERSION);
   j.field("input", input);
   j.field("all_faces", true);

@@ -3,6 +3,7 @@
 
 #include <sstream>
 
+#include "formats/run.hpp"
 #include "formats/json.hpp"
 #include "formats/log.hpp"
 
@@ -22,6 +23,7 @@ void write_report_json(std::ostream& out, const Report& r) {
   JsonWriter j(out);
   j.begin_object();
   j.field("tool", "triangulate");
+  j.field("run_id", run_id());
   j.key("datum").begin_object();
   j.field("type", r.datum);
   j.key("reference_image");

@@ -18,6 +18,7 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include "formats/tables.hpp"
 #include "tests/option_check.hpp"
 #include "tests/run_tool.hpp"
 #include "tests/temp_dir.hpp"
@@ -216,20 +217,11 @@ TEST(Temple, OrientedWithoutMarkersOrPoses) {
   ASSERT_EQ(tri.exit_code, 0) << tri.err;
   std::map<std::string, Eigen::Vector3d> truth;
   for (const TrueCamera& c : t.cams) truth[c.image] = -c.R.transpose() * c.t_mm;
-  std::ifstream in(d / "estimated.csv");
-  std::string line;
-  std::getline(in, line);
   std::vector<Eigen::Vector3d> est, tru;
-  while (std::getline(in, line)) {
-    std::replace(line.begin(), line.end(), ',', ' ');
-    std::istringstream s(line);
-    std::string image;
-    double qw, qx, qy, qz;
-    Eigen::Vector3d tv;
-    s >> image >> qw >> qx >> qy >> qz >> tv.x() >> tv.y() >> tv.z();
-    const Eigen::Matrix3d R = Eigen::Quaterniond(qw, qx, qy, qz).normalized().toRotationMatrix();
-    est.push_back(-R.transpose() * tv);
-    tru.push_back(truth.at(fs::path(image).filename().string()));
+  std::ifstream in(d / "estimated.csv");
+  for (const Pose& p : read_poses(in, (d / "estimated.csv").string())) {
+    est.push_back(p.centre_mm());
+    tru.push_back(truth.at(fs::path(p.image).filename().string()));
   }
   ASSERT_GE(est.size(), 3u);
   Eigen::Matrix3Xd src(3, static_cast<Eigen::Index>(est.size())), dst(3, static_cast<Eigen::Index>(est.size()));

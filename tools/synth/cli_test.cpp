@@ -1,5 +1,6 @@
 // synth on the command line: the tool contract, option errors, and a small run whose truth files
 // are read back with photomill's readers and checked against each other.
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 
@@ -117,8 +118,11 @@ TEST(SynthRun, WritesConsistentTruthFiles) {
   EXPECT_NE(read_file(out / "scene.txt").find("# made by: synth -o"), std::string::npos);
 }
 
+// The same seed gives the same files when the runs also share their run id (the stamp in every
+// photomill file, formats/run.hpp, set through PHOTOMILL_RUN_ID, which the children inherit).
 TEST(SynthRun, SameSeedSameFilesDifferentSeedDifferentImages) {
   TempDir dir;
+  ::setenv("PHOTOMILL_RUN_ID", "synth-test", 1);
   auto run = [&](const std::string& name, const std::string& seed) {
     const ToolResult r = run_tool(tools_path("synth"), {"-o", (dir.path() / name).string(), "--width", "160", "--height", "120",
                                             "--fx", "200", "--views", "1", "--calib-views", "1", "--noise-sigma",
@@ -132,6 +136,7 @@ TEST(SynthRun, SameSeedSameFilesDifferentSeedDifferentImages) {
     EXPECT_EQ(read_file(dir.path() / "a" / f), read_file(dir.path() / "b" / f)) << f;
   }
   EXPECT_NE(read_file(dir.path() / "a" / "part_00.jpg"), read_file(dir.path() / "c" / "part_00.jpg"));
+  ::unsetenv("PHOTOMILL_RUN_ID");
 }
 
 }  // namespace
