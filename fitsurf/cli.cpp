@@ -129,6 +129,9 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--sigma-floor-mm", c.options.sigma_floor_mm,
                  "Smallest sigma_mm --weight-by-sigma uses (marker corners and control points are near 0)")
       ->capture_default_str()->group(slv)->check(tool::positive_up_to(100));
+  app.add_option("--max-net-poles", f.max_net_poles,
+                 "Work limit: a net of more poles (--net, or tried by --tolerance) is refused before any work")
+      ->capture_default_str()->group(slv)->check(tool::finite_in(1, 1e8));
   app.add_option("--threads", f.threads, "Worker threads (0 = all cores)")->capture_default_str()->group(slv)->check(tool::non_negative_up_to(1024));
 
   const std::string tol = "Tolerance mode";

@@ -170,6 +170,11 @@ INSTANTIATE_TEST_SUITE_P(
         bad("max_rounds_absurd", {"--max-rounds", "100000"}, "--max-rounds"),
         bad("mesh_step_mm_nan", {"--mesh-step-mm", "nan"}, "--mesh-step-mm"),
         bad("cg_tolerance_one", {"--cg-tolerance", "1"}, "--cg-tolerance"),
+        // The work limit on the unknowns: a net above it is refused before any work, naming the option.
+        bad("max_net_poles", {"--net", "30x30", "--max-net-poles", "800"},
+            "a 30x30 net has 900 poles, more than the work limit --max-net-poles 800"),
+        bad("net_beyond_the_default_limit", {"--net", "1000x1000"}, "--max-net-poles 250000"),
+        bad("max_net_poles_zero", {"--max-net-poles", "0"}, "--max-net-poles"),
         OptionCase{"plane_threshold_mm", on({"--drop-plane", "--plane-threshold-mm", "0.3"}, dome_on_plate), 0, "",
                    [](const Outcome& r) {
                      // The plate's points lie within 0.2 mm of z = 0: all of them belong to the plane.
