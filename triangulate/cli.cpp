@@ -129,6 +129,9 @@ void add_options(CLI::App& app, Cli& c) {
       ->check(CLI::IsMember(keys(kSolver)))->capture_default_str()->group(ba);
   app.add_option("--max-iterations", o.bundle.max_iterations, "Ceres iterations per adjustment")
       ->check(CLI::Range(1, 100000))->capture_default_str()->group(ba);
+  app.add_option("--max-total-iterations", o.max_total_iterations,
+                 "Work limit: Ceres iterations summed over all adjustments of the run; more is an error")
+      ->check(tool::finite_in(1, 1e9))->capture_default_str()->group(ba);
   app.add_option("--function-tolerance", o.bundle.function_tolerance, "Stop when the cost decreases by less (relative)")
       ->check(tool::positive_up_to(1))->capture_default_str()->group(ba);
   app.add_option("--covariance-max-parameters", o.covariance.max_reduced_parameters,

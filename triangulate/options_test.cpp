@@ -268,6 +268,10 @@ INSTANTIATE_TEST_SUITE_P(
         OptionCase{"max_reproj_px_inf", Scene::Plain, {"--max-reproj-px", "inf"}, 2, "--max-reproj-px: 'inf' is not in (0, 10000]", nullptr},
         OptionCase{"function_tolerance_nan", Scene::Plain, {"--function-tolerance", "nan"}, 2, "--function-tolerance", nullptr},
         OptionCase{"ransac_confidence_nan", Scene::Plain, {"--ransac-confidence", "nan"}, 2, "--ransac-confidence", nullptr},
+        // The work limit: Ceres iterations over all adjustments; a few are not enough for the scene.
+        OptionCase{"max_total_iterations", Scene::Plain, {"--max-total-iterations", "3"}, 1,
+                   "Ceres iterations in all, the work limit --max-total-iterations", nullptr},
+        OptionCase{"max_total_iterations_zero", Scene::Plain, {"--max-total-iterations", "0"}, 2, "--max-total-iterations", nullptr},
         OptionCase{"covariance_max_parameters_absurd", Scene::Plain, {"--covariance-max-parameters", "1e12"}, 2,
                    "--covariance-max-parameters", nullptr},
         bad("min_angle_deg_negative", {"--min-angle-deg", "-1"}, "--min-angle-deg"),
