@@ -180,7 +180,7 @@ std::vector<ImageDetection> detect_boards(const std::vector<std::string>& images
   std::vector<ImageDetection> results(images.size());
   std::mutex report_mutex;
   geometry::parallel_for(images.size(), options.jobs, [&](std::size_t i) {
-    check_image_file(images[i]);
+    check_image_file(images[i], options.max_image_pixels);
     const cv::Mat grey = cv::imread(images[i], cv::IMREAD_GRAYSCALE);
     if (grey.empty()) throw InputError(images[i], 0, "not a readable image");
     results[i] = detect_board(grey, images[i], spec, options);

@@ -4,6 +4,8 @@
 // (z = 0, mm), so `detect --chessboard 9x6 ... | calib --chessboard 9x6` needs no other file.
 #pragma once
 
+#include <cstdint>
+
 #include <functional>
 #include <istream>
 #include <string>
@@ -11,6 +13,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "formats/image.hpp"
 #include "formats/tables.hpp"
 #include "geometry/board.hpp"
 
@@ -50,6 +53,7 @@ struct BoardDetectOptions {
   int charuco_min_half_window_px = 2;
   int charuco_min_markers = 2;  // adjacent markers needed to interpolate a corner (OpenCV's)
   int jobs = 0;                 // images processed in parallel; 0 = all cores
+  std::uint64_t max_image_pixels = kMaxImagePixels;  // a header claiming more is refused (--max-image-mpx)
 };
 
 // What was found in one image.

@@ -2,6 +2,7 @@
 // with --print-board the board's control points CSV (run in board_cli.hpp); or ArUco marker
 // corners and/or SIFT feature files (options and run in photo_cli.hpp). One mode per run.
 // Per-image results go to stderr.
+#include <cstdint>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -10,6 +11,8 @@
 #include "detect/boards.hpp"
 #include "detect/photo_cli.hpp"
 #include "formats/error.hpp"
+#include "formats/image.hpp"
+#include "formats/option_checks.hpp"
 #include "formats/tool.hpp"
 
 using namespace photomill;
@@ -21,6 +24,7 @@ int main(int argc, char** argv) {
   std::string charuco;
   bool print_board = false;
   bool raw_charuco = false;
+  double max_image_mpx = static_cast<double>(kMaxImagePixels) / 1e6;
   detect::BoardSpec spec;
   detect::BoardDetectOptions options;
   detect::PhotoCli photo;  // --aruco, --aruco-dict-file, --features, --draw (detect/photo_cli.hpp)
@@ -50,11 +54,15 @@ int main(int argc, char** argv) {
         app.add_option("--charuco-max-window", options.charuco_max_half_window_px,
                        "ChArUco: largest cornerSubPix half-window, px")
             ->group("Boards")->capture_default_str()->check(CLI::Range(2, 50));
+        app.add_option("--max-image-mpx", max_image_mpx,
+                       "Pixel limit: a photo whose header claims more megapixels is refused before it is decoded")
+            ->capture_default_str()->check(tool::positive_up_to(10000));
         app.add_option("-j,--threads,--jobs", options.jobs, "Images processed in parallel (0: all cores; --jobs: the old name)")
             ->capture_default_str()->check(CLI::Range(0, 1024));
       },
       [&] {
         options.charuco_refine = !raw_charuco;
+        options.max_image_pixels = photo.options.max_image_pixels = static_cast<std::uint64_t>(max_image_mpx * 1e6);
         if (!chessboard.empty()) {
           std::tie(spec.cols, spec.rows) = detect::parse_grid(chessboard, "--chessboard");
           spec.kind = detect::BoardKind::Chessboard;

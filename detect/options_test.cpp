@@ -146,6 +146,12 @@ INSTANTIATE_TEST_SUITE_P(
     Options, DetectOption,
     ::testing::Values(
         // Markers: corner refinement and the edge fit (the default --corner-refine edges).
+        // Issue #25: the pixel limit, checked from the header before decoding (a 16000 x 16000
+        // header is refused by default: docs/errors.md); lowered below the photo it refuses it.
+        OptionCase{"max_image_mpx", markers({"--max-image-mpx", "0.1"}), 1, "its header claims 450x500 pixels (0.225 Mpx), more than the 0.1 Mpx a photo may have", nullptr},
+        OptionCase{"max_image_mpx_raised", markers({"--max-image-mpx", "300"}), 0, "",
+                   [](const Outcome& r) { EXPECT_EQ(r.observations.size(), plain_markers().observations.size()); }},
+        bad("max_image_mpx_nan", {"--max-image-mpx", "nan"}, "--max-image-mpx"),
         OptionCase{"corner_refine", markers({"--corner-refine", "subpix"}), 0, "", moves_corners},
         bad("corner_refine_bad", {"--corner-refine", "lines"}, "--corner-refine"),
         OptionCase{"edge_degree", markers({"--edge-degree", "1"}), 0, "", moves_corners},

@@ -29,7 +29,7 @@ void detect_photos(const std::vector<std::string>& images, const PhotoOptions& o
   std::mutex mutex;
   bool failed = false;  // guarded by mutex: results still in flight after a failure are not delivered
   auto detect_one = [&](std::size_t i) {
-    check_image_file(images[i]);
+    check_image_file(images[i], options.max_image_pixels);
     const cv::Mat grey = cv::imread(images[i], cv::IMREAD_GRAYSCALE);
     if (grey.empty()) throw InputError(images[i], 0, "not a readable image");
     PhotoResult r;

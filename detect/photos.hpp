@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <optional>
 #include <string>
@@ -12,6 +13,7 @@
 #include "detect/markers.hpp"
 #include "detect/sift.hpp"
 #include "formats/features.hpp"
+#include "formats/image.hpp"
 
 namespace photomill::detect {
 
@@ -22,6 +24,7 @@ struct PhotoOptions {
   bool mask_markers = false;                   // SIFT: not on markers nor their quiet zones
   double mask_margin_cells = 1;                // ... grown by this many cells
   int jobs = 0;                                // images in parallel; 0 = all cores
+  std::uint64_t max_image_pixels = kMaxImagePixels;  // a header claiming more is refused (--max-image-mpx)
 };
 
 struct PhotoResult {

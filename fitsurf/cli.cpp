@@ -11,6 +11,7 @@
 #include "fitsurf/report.hpp"
 #include "formats/cad.hpp"
 #include "formats/error.hpp"
+#include "formats/option_checks.hpp"
 #include "formats/surface.hpp"
 #include "formats/tool.hpp"
 
@@ -28,7 +29,7 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--step", c.step, "Also write the surface as STEP (AP214), trimmed by the outline")->group(out);
   app.add_option("--iges", c.iges, "Also write the surface as IGES 5.3, trimmed by the outline")->group(out);
   app.add_option("--mesh", c.mesh, "Also write a triangle mesh of the surface: FILE.stl (binary) or FILE.obj")->group(out);
-  app.add_option("--mesh-step-mm", c.mesh_step_mm, "Sample spacing of --mesh, mm")->capture_default_str()->group(out);
+  app.add_option("--mesh-step-mm", c.mesh_step_mm, "Sample spacing of --mesh, mm")->capture_default_str()->group(out)->check(tool::positive_up_to(1000));
   app.add_option("--report", c.report, "Write a JSON report (residual statistics, net, smoothing, rounds)")->group(out);
   app.add_option("--residuals", c.residuals,
                  "Write the fitted points as PLY with scalar fields residual_mm (signed distance) and weight")
@@ -42,22 +43,22 @@ void add_options(CLI::App& app, Cli& c) {
 
   const std::string sel = "Selecting the part";
   app.add_option("--keep-box", c.keep_box, "Keep only points inside XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (mm)")
-      ->expected(6)->delimiter(',')->group(sel);
+      ->expected(6)->delimiter(',')->group(sel)->check(tool::finite_in(-1e9, 1e9));
   app.add_option("--keep-above", c.keep_above, "Keep only points with A x + B y + C z + D > 0: A,B,C,D (mm)")
-      ->expected(4)->delimiter(',')->group(sel);
+      ->expected(4)->delimiter(',')->group(sel)->check(tool::finite_in(-1e9, 1e9));
   app.add_flag("--drop-plane", s.drop_plane,
                "Drop the dominant plane (RANSAC: the plate) and everything beyond it")->group(sel);
   app.add_option("--plane-threshold-mm", s.plane_threshold_mm, "Distance within which a point belongs to the plane")
-      ->capture_default_str()->group(sel);
+      ->capture_default_str()->group(sel)->check(tool::positive_up_to(1e4));
   app.add_option("--seed", s.seed, "Seed of RANSAC's sampling")->capture_default_str()->group(sel);
   app.add_option("--walls", c.walls, "Where the part stands on walls (steps steeper than --wall-slope-deg): "
                  "auto fits its top alone, dropping the walls and the floor at their foot; off fits them all")
       ->check(CLI::IsMember({"auto", "off"}))->capture_default_str()->group(sel);
   app.add_option("--wall-slope-deg", s.walls.slope_deg, "A face steeper than this is a wall (degrees, 45-89.9)")
-      ->capture_default_str()->check(CLI::Range(45.0, 89.9))->group(sel);
+      ->capture_default_str()->check(tool::finite_in(45, 89.9))->group(sel);
   app.add_option("--wall-radius-mm", s.walls.radius_mm,
                  "Neighbourhood of a point's normal and of the regions (mm; at least 3 mean point spacings)")
-      ->capture_default_str()->check(CLI::Range(0.01, 1000.0))->group(sel);
+      ->capture_default_str()->check(tool::finite_in(0.01, 1000))->group(sel);
 
   const std::string srf = "Surface";
   app.add_option("--degree-u", f.degree_u, "Degree p along u")->capture_default_str()->check(CLI::Range(1, 25))->group(srf);
@@ -74,7 +75,7 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--smoothing", f.smoothing_mm4,
                  "Smoothing weight lambda, mm^4 (order 2; mm^6 with --smoothing-order 3): its 4th (6th) root is the "
                  "length below which detail is smoothed away; 0 = none")
-      ->capture_default_str()->group(srf);
+      ->capture_default_str()->group(srf)->check(tool::non_negative_up_to(1e15));
   app.add_option("--smoothing-order", f.smoothing_order,
                  "Derivatives the smoothing penalises: 2 thin plate (bends; a plane costs nothing), 3 (changes of "
                  "bend; any quadric costs nothing, so gaps on curved parts are bridged along the curvature instead "
@@ -83,7 +84,7 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--noise-mm", f.noise_mm,
                  "Noise of the points (standard deviation, mm): choose the smoothing so the residuals match it "
                  "(Reinsch), instead of --smoothing; for sparse noisy points such as markers")
-      ->group(srf);
+      ->group(srf)->check(tool::non_negative_up_to(100));
   app.add_option("--prefit", c.prefit,
                  "Sparse points: first interpolate them by the radial kernel (Gaussian, Matern 3/2, 5/2, 7/2 with "
                  "their length and trend, or polyharmonic 3-5) that predicts each point best from the others "
@@ -97,49 +98,52 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--max-slope-deg", f.fold.max_slope_deg,
                  "Steepest slope of the fitted surface over its plane inside the outline where the data are not as "
                  "steep (there it may follow them: their slope + 3 degrees, at most 89); steeper, or folding, fails")
-      ->capture_default_str()->check(CLI::Range(1.0, 90.0))->group(srf);
+      ->capture_default_str()->check(tool::finite_in(1, 90))->group(srf);
   app.add_option("--outline-cell-mm", o.outline.cell_mm, "Grid cell of the concave outline (0 = 3 mean point spacings)")
-      ->capture_default_str()->group(srf);
+      ->capture_default_str()->group(srf)->check(tool::non_negative_up_to(1e4));
 
   const std::string slv = "Solving";
   app.add_option("--solver", c.solver, "Linear solver: sparse Cholesky (ldlt) or conjugate gradients (cg)")
       ->capture_default_str()->check(CLI::IsMember({"ldlt", "cg"}))->group(slv);
-  app.add_option("--cg-tolerance", f.cg_tolerance, "CG: relative residual to reach")->capture_default_str()->group(slv);
+  app.add_option("--cg-tolerance", f.cg_tolerance, "CG: relative residual to reach")->capture_default_str()->group(slv)->check(tool::positive_up_to(0.1));
   app.add_flag("--no-correction", c.no_correction,
                "No parameter correction: keep the projection onto the plane as parameters")->group(slv);
   app.add_option("--max-rounds", f.max_rounds, "Fits at most (each followed by parameter correction and reweighting)")
-      ->capture_default_str()->group(slv);
+      ->capture_default_str()->group(slv)->check(tool::finite_in(1, 1000));
   app.add_option("--min-gain", f.min_rms_gain, "Stop when a round lowers the RMS by less than this fraction")
-      ->capture_default_str()->group(slv);
+      ->capture_default_str()->group(slv)->check(tool::finite_in(0, 0.999));
   app.add_option("--robust", c.robust,
                  "Outliers, judged against their neighbours: reject (weight 0 beyond the cutoff), huber, tukey "
                  "(IRLS weights), or none (for noise-free data)")
       ->capture_default_str()->check(CLI::IsMember({"none", "reject", "huber", "tukey"}))->group(slv);
   app.add_option("--robust-threshold", f.robust_threshold,
                  "Cutoff in robust standard deviations (0 = 5 for reject, 1.345 for huber, 4.685 for tukey)")
-      ->capture_default_str()->group(slv);
+      ->capture_default_str()->group(slv)->check(tool::non_negative_up_to(100));
   app.add_option("--robust-floor-mm", f.robust_min_scale_mm,
                  "Smallest robust standard deviation: residuals below threshold x this are never outliers")
-      ->capture_default_str()->group(slv);
+      ->capture_default_str()->group(slv)->check(tool::positive_up_to(100));
   app.add_flag("--weight-by-sigma", c.options.weight_by_sigma,
                "Weight each point by 1/sigma^2 from the cloud's sigma_mm property (triangulate's standard deviation "
                "of the point): a point seen in two photos counts less than one seen in eight")
       ->group(slv);
   app.add_option("--sigma-floor-mm", c.options.sigma_floor_mm,
                  "Smallest sigma_mm --weight-by-sigma uses (marker corners and control points are near 0)")
-      ->capture_default_str()->group(slv);
-  app.add_option("--threads", f.threads, "Worker threads (0 = all cores)")->capture_default_str()->group(slv);
+      ->capture_default_str()->group(slv)->check(tool::positive_up_to(100));
+  app.add_option("--max-net-poles", f.max_net_poles,
+                 "Work limit: a net of more poles (--net, or tried by --tolerance) is refused before any work")
+      ->capture_default_str()->group(slv)->check(tool::finite_in(1, 1e8));
+  app.add_option("--threads", f.threads, "Worker threads (0 = all cores)")->capture_default_str()->group(slv)->check(tool::non_negative_up_to(1024));
 
   const std::string tol = "Tolerance mode";
   app.add_option("--tolerance", c.tolerance_mm,
                  "Grow the net until the cross-validated deviation is at most this (mm); fails if it cannot be met")
       ->each([&c](const std::string&) { c.tolerance_given = true; })
-      ->group(tol);
+      ->group(tol)->check(tool::positive_up_to(1e4));
   app.add_option("--tolerance-stat", c.tolerance_stat, "Deviation compared with --tolerance")
       ->capture_default_str()->check(CLI::IsMember({"rms", "p90", "p95", "p99", "max"}))->group(tol);
   app.add_option("--cv-folds", c.cv_folds, "Cross-validation folds")
       ->capture_default_str()->check(CLI::Range(2, 1000))->group(tol);
-  app.add_option("--max-poles", c.max_poles, "Largest net tried, poles per direction")->capture_default_str()->group(tol);
+  app.add_option("--max-poles", c.max_poles, "Largest net tried, poles per direction")->capture_default_str()->group(tol)->check(tool::finite_in(2, 2000));
   tool::add_presets(app, c.preset,
                     {{"features",
                       {{"--weight-by-sigma", [&c] { c.options.weight_by_sigma = true; }},

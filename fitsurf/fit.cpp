@@ -389,7 +389,11 @@ void validate(const FitOptions& o) {
        "a degree " + std::to_string(o.degree_u) + "x" + std::to_string(o.degree_v) + " surface needs a net of at least " +
            std::to_string(o.degree_u + 1) + "x" + std::to_string(o.degree_v + 1) + " poles, got " +
            std::to_string(o.poles_u) + "x" + std::to_string(o.poles_v));
-  need(static_cast<long long>(o.poles_u) * o.poles_v <= 4'000'000, "control net too large (at most 4 million poles)");
+  need(o.max_net_poles >= 1, "--max-net-poles must be >= 1");
+  need(static_cast<long long>(o.poles_u) * o.poles_v <= o.max_net_poles,
+       "a " + std::to_string(o.poles_u) + "x" + std::to_string(o.poles_v) + " net has " +
+           std::to_string(static_cast<long long>(o.poles_u) * o.poles_v) + " poles, more than the work limit --max-net-poles " +
+           std::to_string(o.max_net_poles) + ": use a smaller --net, or raise --max-net-poles for a job this large");
   need(std::isfinite(o.smoothing_mm4) && o.smoothing_mm4 >= 0, "--smoothing must be >= 0");
   need(o.smoothing_order == 2 || o.smoothing_order == 3, "--smoothing-order must be 2 or 3");
   need(std::isfinite(o.noise_mm) && o.noise_mm >= 0, "--noise-mm must be >= 0");

@@ -105,6 +105,12 @@ struct FitOptions {
   // Fits at most (the first one included). Parameter correction converges linearly: on a range
   // scan the RMS still falls by several percent a round after 8 (docs/measurements/fitsurf.md).
   int max_rounds = 20;
+  // Work limit on the unknowns (--max-net-poles): a net of more poles is refused before any
+  // work. The normal equations' factor grows faster than the net: 200 x 200 poles on the demo's
+  // 7 700 points took 26 s and 250 MB; the Makefile's net is 75 x 50, --tolerance stops at
+  // 200 x 200. The default, 500 x 500, is 6 times that; the old fixed cap was 4 million poles
+  // (a 2000 x 2000 net), far beyond the memory of the machine.
+  long long max_net_poles = 250'000;
   // A round whose surface is steeper than the fold check allows (check_no_fold, at the foot points'
   // cells) is undone and the correction stops there, with a warning: the points slide along a steep
   // flank round after round until the surface curls over.

@@ -161,6 +161,20 @@ INSTANTIATE_TEST_SUITE_P(
                                1500);
                    }},
         bad("keep_above_zero_normal", {"--keep-above", "0,0,0,5"}, "--keep-above"),
+        // Issue #25: every numeric option checked at parse time (NaN, infinities, absurd values),
+        // the range in --help (CLI::Range let NaN through: --max-slope-deg nan was taken).
+        bad("max_slope_deg_nan", {"--max-slope-deg", "nan"}, "--max-slope-deg: 'nan' is not in [1, 90]"),
+        bad("smoothing_nan", {"--smoothing", "nan"}, "--smoothing: 'nan' is not in [0, 1e15]"),
+        bad("keep_box_inf", {"--keep-box", "-1,-1,-1,1,1,inf"}, "--keep-box"),
+        bad("tolerance_absurd", {"--tolerance", "1e300"}, "--tolerance"),
+        bad("max_rounds_absurd", {"--max-rounds", "100000"}, "--max-rounds"),
+        bad("mesh_step_mm_nan", {"--mesh-step-mm", "nan"}, "--mesh-step-mm"),
+        bad("cg_tolerance_one", {"--cg-tolerance", "1"}, "--cg-tolerance"),
+        // The work limit on the unknowns: a net above it is refused before any work, naming the option.
+        bad("max_net_poles", {"--net", "30x30", "--max-net-poles", "800"},
+            "a 30x30 net has 900 poles, more than the work limit --max-net-poles 800"),
+        bad("net_beyond_the_default_limit", {"--net", "1000x1000"}, "--max-net-poles 250000"),
+        bad("max_net_poles_zero", {"--max-net-poles", "0"}, "--max-net-poles"),
         OptionCase{"plane_threshold_mm", on({"--drop-plane", "--plane-threshold-mm", "0.3"}, dome_on_plate), 0, "",
                    [](const Outcome& r) {
                      // The plate's points lie within 0.2 mm of z = 0: all of them belong to the plane.

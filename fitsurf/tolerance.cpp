@@ -114,6 +114,10 @@ ToleranceSearch choose_net(const std::vector<Eigen::Vector3d>& points, const Fit
       why = "the net reached --max-poles " + std::to_string(t.max_poles);
       break;
     }
+    if (static_cast<long long>(o.poles_u) * o.poles_v > base.max_net_poles) {
+      why = "the net reached the work limit --max-net-poles " + std::to_string(base.max_net_poles);
+      break;
+    }
     if (static_cast<std::size_t>(o.poles_u) * static_cast<std::size_t>(o.poles_v) > train_size) {
       why = "the net would have more poles than there are points";
       break;

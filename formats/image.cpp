@@ -2,6 +2,7 @@
 
 #include <cerrno>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -68,6 +69,13 @@ bool jpeg_complete(const std::string& d, std::uint64_t& width, std::uint64_t& he
   return false;
 }
 
+// Megapixels, 6 significant digits ("256", "0.003072", "10000").
+std::string mpx(std::uint64_t pixels) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", static_cast<double>(pixels) / 1e6);
+  return buf;
+}
+
 }  // namespace
 
 bool image_file_exists(const std::string& path) {
@@ -75,7 +83,7 @@ bool image_file_exists(const std::string& path) {
   return std::filesystem::exists(path, ec);
 }
 
-void check_image_file(const std::string& path) {
+void check_image_file(const std::string& path, std::uint64_t max_pixels) {
   namespace fs = std::filesystem;
   std::error_code ec;
   const auto status = fs::status(path, ec);
@@ -102,9 +110,10 @@ void check_image_file(const std::string& path) {
       throw InputError(path, 0, "truncated JPEG: the file ends before its end-of-image marker");
     }
   }
-  if (width * height > kMaxImagePixels) {
-    throw InputError(path, 0, "its header claims " + std::to_string(width) + "x" + std::to_string(height) +
-                                  " pixels, more than the " + std::to_string(kMaxImagePixels) + " an image may have");
+  if (width * height > max_pixels) {
+    throw InputError(path, 0, "its header claims " + std::to_string(width) + "x" + std::to_string(height) + " pixels (" +
+                                  mpx(width * height) + " Mpx), more than the " + mpx(max_pixels) +
+                                  " Mpx a photo may have (the pixel limit; detect takes --max-image-mpx)");
   }
 }
 

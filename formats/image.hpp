@@ -9,17 +9,21 @@
 
 namespace photomill {
 
-// The most pixels an image may claim: 2^28 (268 Mpixel; the largest phone sensors have 200).
-// A header claiming more is junk or hostile, and decoding it would allocate that much first.
-inline constexpr std::uint64_t kMaxImagePixels = std::uint64_t{1} << 28;
+// The most pixels a photo may claim, checked from its header before any decoding (issue #25):
+// 220 million. The largest camera sensors make 200 Mpx (16320 x 12240 phone sensors; medium
+// format backs 150 Mpx); a 16000 x 16000 header (256 Mpx) is refused, since decoding it would
+// allocate 2 GB before anything could look at it, and a flat PNG that claims it is a few KB.
+// detect's --max-image-mpx raises or lowers it for one run.
+inline constexpr std::uint64_t kMaxImagePixels = 220'000'000;
 // The largest image file: 2^31 bytes (8 bytes a pixel at kMaxImagePixels, uncompressed).
 inline constexpr std::uint64_t kMaxImageBytes = std::uint64_t{1} << 31;
 
 // Throws InputError(path, 0, reason) unless `path` names a regular, non-empty file of at most
-// kMaxImageBytes whose content is complete for its format and within kMaxImagePixels: a PNG needs its IDAT data and IEND
-// chunk, a JPEG its end-of-image marker (data appended after it are allowed). Other formats
-// (TIFF, BMP, ...) are left to the decoder.
-void check_image_file(const std::string& path);
+// kMaxImageBytes whose content is complete for its format and whose header claims at most
+// `max_pixels` (width x height from a PNG's IHDR or a JPEG's SOF; nothing is decoded): a PNG needs
+// its IDAT data and IEND chunk, a JPEG its end-of-image marker (data appended after it are
+// allowed). Other formats (TIFF, BMP, ...) are left to the decoder.
+void check_image_file(const std::string& path, std::uint64_t max_pixels = kMaxImagePixels);
 
 // True if `path` exists (any kind of file): callers that may run where the images are not
 // (calib reading image sizes) ask before check_image_file.

@@ -488,6 +488,8 @@ void write_fixtures(const fs::path& dir) {
 
   for (const auto& [name, text] : f) std::ofstream(dir / name, std::ios::binary) << text;
   std::ofstream(dir / "huge.png", std::ios::binary) << png_claiming(100000, 100000);
+  // 16000 x 16000 (256 Mpx) passed the old limit of 2^28 and made detect decode 2 GB (issue #25).
+  std::ofstream(dir / "huge16k.png", std::ios::binary) << png_claiming(16000, 16000);
 
   // Images (detect, calib): two grey PNGs of different sizes, a PNG cut short, a JPEG cut short,
   // a text file named .png, an empty .png.

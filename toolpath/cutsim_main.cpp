@@ -8,6 +8,7 @@
 
 #include "formats/cl_data.hpp"
 #include "formats/log.hpp"
+#include "formats/option_checks.hpp"
 #include "formats/tool.hpp"
 #include "toolpath/cutsim.hpp"
 #include "toolpath/input.hpp"
@@ -28,15 +29,15 @@ int main(int argc, char** argv) {
       [&](CLI::App& app) {
         app.add_option("surface", surface_path, "Surface: photomill surface text, STEP or IGES")->required();
         app.add_option("cl", cl_paths, "CL programs (APT or CSV) in the order they run")->required();
-        app.add_option("--face", face, "Face of a STEP/IGES file, 0-based in file order (default 0)");
-        app.add_option("--stock-box-mm", box, "Stock XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (default: the surface's box grown by --stock-margin-mm)");
-        app.add_option("--stock-margin-mm", o.stock_margin_mm, "Default stock: this much around and above the surface")->capture_default_str();
-        app.add_option("--cell-mm", o.cell_mm, "Z-map grid spacing (> 0)")->capture_default_str();
-        app.add_option("--allowance-mm", o.allowance_mm, "Material meant to stay on the surface (0 after finishing)")->capture_default_str();
-        app.add_option("--plunge-angle-deg", o.plunge_angle_deg, "A feed move going down into material more steeply than this is a plunge, (0, 90]")->capture_default_str();
-        app.add_option("--tool-diameter-mm", diameter, "Cutter of CL data without a CUTTER/TLDATA record (CSV)");
-        app.add_option("--corner-radius-mm", corner, "Its corner radius (default: a ball, half the diameter)");
-        app.add_option("--threads", o.threads, "Worker threads (0 = all cores)")->capture_default_str();
+        app.add_option("--face", face, "Face of a STEP/IGES file, 0-based in file order (default 0)")->check(tool::finite_in(0, 1e6));
+        app.add_option("--stock-box-mm", box, "Stock XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX, each within ±1e6 (default: the surface's box grown by --stock-margin-mm)");
+        app.add_option("--stock-margin-mm", o.stock_margin_mm, "Default stock: this much around and above the surface")->capture_default_str()->check(tool::non_negative_up_to(1e4));
+        app.add_option("--cell-mm", o.cell_mm, "Z-map grid spacing (> 0)")->capture_default_str()->check(tool::positive_up_to(100));
+        app.add_option("--allowance-mm", o.allowance_mm, "Material meant to stay on the surface (0 after finishing)")->capture_default_str()->check(tool::non_negative_up_to(100));
+        app.add_option("--plunge-angle-deg", o.plunge_angle_deg, "A feed move going down into material more steeply than this is a plunge, (0, 90]")->capture_default_str()->check(tool::positive_up_to(90));
+        app.add_option("--tool-diameter-mm", diameter, "Cutter of CL data without a CUTTER/TLDATA record (CSV)")->check(tool::positive_up_to(200));
+        app.add_option("--corner-radius-mm", corner, "Its corner radius (default: a ball, half the diameter)")->check(tool::non_negative_up_to(100));
+        app.add_option("--threads", o.threads, "Worker threads (0 = all cores)")->capture_default_str()->check(tool::non_negative_up_to(1024));
         app.add_option("--report", report, "Write a JSON report");
         app.add_option("--picture", picture, "Write a PNG top view of the material left");
       },

@@ -18,11 +18,16 @@ constexpr int kMaxSamples = 32;
 constexpr double kBracketFraction = 1e-3;
 
 // Golden-section search for the maximum of f on [a, b], f(m) known at an interior point m.
+// The bracket shrinks by 1/phi a step until it is `stop` wide, but never below what double
+// precision can tell apart at a and b (8 ulp): a sub-curve only a few ulp long in t (knot spans
+// of 1e-15 at t = 0.5) had a stop of 1e-18, which no bracket reaches, and the search ran forever.
 SubcurveMax golden_max(const std::function<double(double)>& f, double a, double b, double stop) {
   constexpr double kInvPhi = 0.6180339887498949;
+  stop = std::max(stop, 8 * std::numeric_limits<double>::epsilon() * std::max(std::abs(a), std::abs(b)));
   double x1 = b - kInvPhi * (b - a), x2 = a + kInvPhi * (b - a);
   double f1 = f(x1), f2 = f(x2);
-  while (std::abs(b - a) > stop) {
+  // 1/phi^100 < 1e-20: more steps than any stop above rounding needs.
+  for (int step = 0; step < 100 && std::abs(b - a) > stop; ++step) {
     if (f1 > f2) {
       b = x2, x2 = x1, f2 = f1;
       x1 = b - kInvPhi * (b - a);
@@ -85,6 +90,19 @@ SegmentCheck check_segment(const IsoCurve& curve, double t0, double t1, const Ei
   return out;
 }
 
+// The work limit (ForwardStepOptions::max_points): every CL point computed, kept or not, counts,
+// so that neither a path of endless points nor a step shortened for ever outlives it.
+void count_work(const ForwardStepOptions& o, std::atomic<std::size_t>& taken, const IsoCurve& curve, double t) {
+  if (++taken <= o.max_points) return;
+  const Eigen::Vector2d uv = curve.uv(t);
+  std::ostringstream msg;
+  msg.precision(9);
+  msg << "more than " << o.max_points << " CL points computed (the work limit, --max-cl-points), the last at (u, v) = ("
+      << uv.x() << ", " << uv.y() << "): raise --max-cl-points for a job this large, or coarsen --scallop-mm and "
+      << "--chord-tol-mm";
+  throw GeometryError(msg.str());
+}
+
 }  // namespace
 
 double chord_length_for_tolerance(double radius_mm, double tol_mm) {
@@ -136,8 +154,8 @@ MarchResult march_interval(const IsoCurve& curve, double t0, double t1, const Fo
   CutterLocation cl = locate(f);
   out.points.push_back(cl);
   out.ts.push_back(t);
-  constexpr std::size_t kMaxPoints = 20'000'000;
   const double lifted_step = chord_length_for_tolerance(r, o.aim * o.gouge_tol_mm);
+  std::atomic<std::size_t> own_count{0};  // without a shared count, this interval's alone
   double last_dt = kInf, growth = 1.5, last_dev = 0, last_pen = 0, last_centre_step = 0;
   while (t != t1) {
     // Step 2: chord length from the curvature of the pass (3D curvature |C' x C''| / |C'|^3 for
@@ -168,6 +186,7 @@ MarchResult march_interval(const IsoCurve& curve, double t0, double t1, const Fo
     for (;;) {
       double tn = t + dir * dt;
       if (!std::isfinite(tn) || dir * (tn - t1) >= 0) tn = t1;
+      count_work(o, o.points_taken ? *o.points_taken : own_count, curve, tn);
       const PassFrame fn = curve.frame(tn);
       const CutterLocation cln = locate(fn);
       const bool penetration_matters = o.enforce_gouge || (!cl.gouge && !cln.gouge);
@@ -205,8 +224,12 @@ MarchResult march_interval(const IsoCurve& curve, double t0, double t1, const Fo
       // pole the contact stays put while the ball rolls around it).
       const double moved = std::max((cln.cc - cl.cc).norm(), centre_step) * std::max(ratio, 0.1);
       // A step too small to change t in double precision (the ball jumps while the contact
-      // cannot move: a normal that turns over within rounding) is the same failure.
-      if (moved < o.min_step_mm || t + dir * dt == t) {
+      // cannot move: a normal that turns over within rounding) is the same failure, and so is a
+      // shorter step that rounds to the same tn: within a few ulp of t, t + dt rounds up to
+      // where it was, and at a crease (a knot of multiplicity p, u = 0.5) the march proposed
+      // that one tn for ever.
+      const double next = t + dir * dt;
+      if (moved < o.min_step_mm || next == t || next == tn) {
         std::ostringstream msg;
         msg.precision(9);
         const Eigen::Vector2d uv = curve.uv(t);
@@ -217,7 +240,6 @@ MarchResult march_interval(const IsoCurve& curve, double t0, double t1, const Fo
         throw GeometryError(msg.str());
       }
     }
-    if (out.points.size() > kMaxPoints) throw GeometryError("a single pass needs more than 20 million points");
   }
   return out;
 }

@@ -6,6 +6,8 @@
 // tolerance. Output: the CL points of one pass interval.
 #pragma once
 
+#include <atomic>
+#include <cstddef>
 #include <functional>
 #include <vector>
 
@@ -56,6 +58,12 @@ struct ForwardStepOptions {
   // Shorten steps until the ball's straight moves stay within gouge_tol_mm. Off when gouges are
   // only reported (no lift): then segments that touch a gouge point are not held to it.
   bool enforce_gouge = true;
+  // Work limit: every CL point computed (each forward-step proposal, kept or rejected) of all
+  // intervals marched with these options, in parallel too, is counted in `*points_taken` (when
+  // set, else per interval); more than `max_points` stops the march with a GeometryError naming toolpath's
+  // --max-cl-points. Neither endless points nor a step shortened for ever outlive it.
+  std::atomic<std::size_t>* points_taken = nullptr;
+  std::size_t max_points = 20'000'000;
 };
 
 // The CC/CL points of one pass interval [t0, t1] (both ends included, in the order given: t1 may

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <stdexcept>
 
 #include <gtest/gtest.h>
 
@@ -113,6 +114,28 @@ TEST(March, RequiredStepBelowTheMinimumIsAGeometryError) {
   fo.min_step_mm = 0.5;  // a chord of 0.5 mm on this wave deviates far more than 1e-6 mm
   EXPECT_THROW(march_interval(curve, 0, 1, fo, 3.0, [&](const PassFrame& f) { return cc_to_cl(f, drop, {}); }),
                GeometryError);
+}
+
+}  // namespace
+}  // namespace photomill::toolpath
+
+namespace photomill::toolpath {
+namespace {
+
+// Issue #25: on a sub-curve a few ulp long (nearly coincident knots at t = 0.5) the golden-section
+// search aimed at a bracket of 1e-3 of it, narrower than double precision can make one, and never
+// ended. It now stops at rounding; f counts its calls and gives up, so the old code fails here
+// instead of hanging.
+TEST(MaxOverSubcurve, EndsOnAnIntervalAFewUlpLong) {
+  int calls = 0;
+  const auto f = [&calls](double t) {
+    if (++calls > 10'000) throw std::runtime_error("the search does not end");
+    return -t;  // largest at the start: the bracket closes on t0, a few ulp wide
+  };
+  const SubcurveMax m = max_over_subcurve(f, 0.5, 0.5 + 1e-15);
+  EXPECT_GE(m.t, 0.5);
+  EXPECT_LE(m.t, 0.5 + 1e-15);
+  EXPECT_LT(calls, 200);
 }
 
 }  // namespace

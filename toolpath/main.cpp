@@ -8,6 +8,7 @@
 #include "formats/cl_data.hpp"
 #include "formats/error.hpp"
 #include "formats/log.hpp"
+#include "formats/option_checks.hpp"
 #include "formats/tool.hpp"
 #include "toolpath/input.hpp"
 #include "toolpath/part.hpp"
@@ -112,37 +113,40 @@ int main(int argc, char** argv) {
         app.add_option("surface", input, "Surface: photomill surface text, STEP or IGES ('-' = stdin)")->capture_default_str();
         app.add_option("-o,--output", output, "CL data output ('-' = stdout)")->capture_default_str();
         app.add_option("--format", format, "CL data format")->check(CLI::IsMember({"apt", "csv"}))->capture_default_str();
-        app.add_option("--face", face, "Face of a STEP/IGES file, 0-based in file order (default 0)");
+        app.add_option("--face", face, "Face of a STEP/IGES file, 0-based in file order (default 0)")->check(tool::finite_in(0, 1e6));
         app.add_flag("--all-faces", all_faces,
                      "Machine the whole STEP/IGES part: every face that faces up, checked against all faces (walls and faces facing down are reported)");
         app.add_option("--mesh-tol-mm", mesh_tol_mm, "--all-faces: the part's mesh for the whole-part check is within this of the faces")
-            ->capture_default_str();
-        app.add_option("--tool-radius-mm", o.tool_radius_mm, "Ball-end radius R")->capture_default_str();
-        app.add_option("--scallop-mm", o.scallop_mm, "Highest material left above the surface h (cusps and chords)")->capture_default_str();
-        app.add_option("--chord-tol-mm", o.chord_tol_mm, "Chord tolerance e between CC points, below --scallop-mm")->capture_default_str();
-        app.add_option("--gouge-tol-mm", o.gouge_tol_mm, "Deepest a straight move may dip into the surface")->capture_default_str();
-        app.add_option("--stock-mm", o.stock_mm, "Allowance left on the surface (roughing)")->capture_default_str();
+            ->capture_default_str()->check(tool::positive_up_to(1));
+        app.add_option("--tool-radius-mm", o.tool_radius_mm, "Ball-end radius R")->capture_default_str()->check(tool::positive_up_to(kMaxToolRadiusMm));
+        app.add_option("--scallop-mm", o.scallop_mm, "Highest material left above the surface h (cusps and chords)")->capture_default_str()->check(tool::positive_up_to(10));
+        app.add_option("--chord-tol-mm", o.chord_tol_mm, "Chord tolerance e between CC points, below --scallop-mm")->capture_default_str()->check(tool::positive_up_to(10));
+        app.add_option("--gouge-tol-mm", o.gouge_tol_mm, "Deepest a straight move may dip into the surface")->capture_default_str()->check(tool::positive_up_to(10));
+        app.add_option("--stock-mm", o.stock_mm, "Allowance left on the surface (roughing)")->capture_default_str()->check(tool::non_negative_up_to(100));
         app.add_option("--direction", direction, "Passes run along u (v constant) or v")->check(CLI::IsMember({"u", "v"}))->capture_default_str();
         app.add_option("--pattern", pattern, "zigzag: alternate directions, linked; oneway: retract after every pass")
             ->check(CLI::IsMember({"zigzag", "oneway"}))->capture_default_str();
         app.add_flag("--no-lift", no_lift, "Report gouges but do not lift the tool out of them");
-        app.add_option("--max-step-mm", o.max_step_mm, "Longest forward step")->capture_default_str();
-        app.add_option("--feed-mm-per-min", o.feed_mm_per_min, "Cutting feed")->capture_default_str();
-        app.add_option("--plunge-feed-mm-per-min", o.plunge_feed_mm_per_min, "Feed down onto a pass")->capture_default_str();
-        app.add_option("--safe-z-mm", o.safe_z_mm, "Rapid plane, tool tip (default: top of surface and path + --retract-mm)");
-        app.add_option("--retract-mm", o.retract_mm, "Safe plane above the highest point")->capture_default_str();
-        app.add_option("--clearance-mm", o.clearance_mm, "Rapid down to this height above a pass start, then feed")->capture_default_str();
-        app.add_option("--ramp-angle-deg", o.ramp_angle_deg, "Enter a pass by a ramp back along it this steep, [0, 45] (0: straight down)")->capture_default_str();
-        app.add_option("--drop-sample-mm", o.drop_sample_mm, "Drop-cutter surface sample spacing")->capture_default_str();
-        app.add_option("--side-sample-mm", o.side_sample_mm, "Spacing along a pass of the side-step samples")->capture_default_str();
-        app.add_option("--threads", o.threads, "Worker threads (0 = all cores)")->capture_default_str();
+        app.add_option("--max-step-mm", o.max_step_mm, "Longest forward step")->capture_default_str()->check(tool::positive_up_to(1000));
+        app.add_option("--feed-mm-per-min", o.feed_mm_per_min, "Cutting feed")->capture_default_str()->check(tool::positive_up_to(1e6));
+        app.add_option("--plunge-feed-mm-per-min", o.plunge_feed_mm_per_min, "Feed down onto a pass")->capture_default_str()->check(tool::positive_up_to(1e6));
+        app.add_option("--safe-z-mm", o.safe_z_mm, "Rapid plane, tool tip (default: top of surface and path + --retract-mm)")->check(tool::finite_in(-1e6, 1e6));
+        app.add_option("--retract-mm", o.retract_mm, "Safe plane above the highest point")->capture_default_str()->check(tool::non_negative_up_to(1e4));
+        app.add_option("--clearance-mm", o.clearance_mm, "Rapid down to this height above a pass start, then feed")->capture_default_str()->check(tool::non_negative_up_to(1e4));
+        app.add_option("--ramp-angle-deg", o.ramp_angle_deg, "Enter a pass by a ramp back along it this steep, [0, 45] (0: straight down)")->capture_default_str()->check(tool::non_negative_up_to(45));
+        app.add_option("--drop-sample-mm", o.drop_sample_mm, "Drop-cutter surface sample spacing")->capture_default_str()->check(tool::positive_up_to(100));
+        app.add_option("--side-sample-mm", o.side_sample_mm, "Spacing along a pass of the side-step samples")->capture_default_str()->check(tool::positive_up_to(100));
+        app.add_option("--max-cl-points", o.max_cl_points,
+                       "Work limit: more CL points on the passes than this is an error (exit 1), not a run without end")
+            ->capture_default_str()->check(tool::finite_in(1, 1e10));
+        app.add_option("--threads", o.threads, "Worker threads (0 = all cores)")->capture_default_str()->check(tool::non_negative_up_to(1024));
         app.add_option("--part-name", o.part_name, "PARTNO in the CL data")->capture_default_str();
-        app.add_option("--spindle-rpm", o.spindle_rpm, "Spindle speed written to the CL data (SPINDL)");
+        app.add_option("--spindle-rpm", o.spindle_rpm, "Spindle speed written to the CL data (SPINDL)")->check(tool::positive_up_to(1e6));
         app.add_flag("--coolant", o.coolant, "Coolant on during the program (COOLNT)");
         app.add_option("--preview", preview, "Write a PNG top view of the path: x/y in mm, coloured by height, rapids, start and end");
         app.add_option("--report", report, "Write a JSON report (statistics, gouges, verification)");
         app.add_flag("--verify", verify, "Simulate the cut on a z-map; report max scallop and deepest gouge");
-        app.add_option("--zmap-cell-mm", zmap.cell_mm, "Z-map grid spacing for --verify")->capture_default_str();
+        app.add_option("--zmap-cell-mm", zmap.cell_mm, "Z-map grid spacing for --verify")->capture_default_str()->check(tool::positive_up_to(100));
       },
       [&] {
         o.lift = !no_lift;

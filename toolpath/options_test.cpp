@@ -119,6 +119,18 @@ INSTANTIATE_TEST_SUITE_P(
                      EXPECT_LE(json_number(r.report, "max_ball_dip_mm", "path"), 0.002);
                    }},
         bad("gouge_tol_mm_zero", tp({"--gouge-tol-mm", "0"}), "--gouge-tol-mm"),
+        // Issue #25: numeric options are checked at parse time (NaN, absurd values), the range in --help.
+        bad("tool_radius_mm_absurd", tp({"--tool-radius-mm", "1e9"}), "--tool-radius-mm: '1e9' is not in (0, 50]"),
+        bad("tool_radius_mm_nan", tp({"--tool-radius-mm", "nan"}), "--tool-radius-mm: 'nan' is not in (0, 50]"),
+        bad("scallop_mm_inf", tp({"--scallop-mm", "inf"}), "--scallop-mm"),
+        bad("threads_absurd", tp({"--threads", "100000"}), "--threads"),
+        OptionCase{"max_cl_points", tp({"--max-cl-points", "300"}), 1, "(the work limit, --max-cl-points)", nullptr},
+        bad("max_cl_points_zero", tp({"--max-cl-points", "0"}), "--max-cl-points"),
+        OptionCase{"help_shows_ranges", tp({"--help"}), 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_NE(r.r.out.find("--tool-radius-mm FLOAT:in (0, 50]"), std::string::npos) << r.r.out;
+                     EXPECT_NE(r.r.out.find("--max-cl-points UINT:in [1, 1e10]"), std::string::npos) << r.r.out;
+                   }},
         OptionCase{"stock_mm", tp({"--stock-mm", "0.5"}), 0, "",
                    [](const Outcome& r) {
                      EXPECT_DOUBLE_EQ(json_number(r.report, "stock_mm", "options"), 0.5);

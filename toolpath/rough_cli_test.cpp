@@ -4,6 +4,9 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -101,6 +104,13 @@ INSTANTIATE_TEST_SUITE_P(
         CliCase{"simplify", quick({"--simplify-mm", "0.1", "-"}), 0, "GOTO/", ""},
         CliCase{"simplify_too_big", quick({"--simplify-mm", "5", "-"}), 2, "", "--simplify-mm"},
         CliCase{"work_limit", quick({"--max-moves", "50", "-"}), 1, "", "--max-moves"},
+        // Issue #25: every numeric option checked at parse time, the range in --help.
+        CliCase{"tool_diameter_nan", quick({"--tool-diameter-mm", "nan", "-"}), 2, "", "--tool-diameter-mm: 'nan' is not in (0, 200]"},
+        CliCase{"step_down_absurd", quick({"--step-down-mm", "1e9", "-"}), 2, "", "--step-down-mm: '1e9' is not in (0, 1000]"},
+        CliCase{"cell_inf", quick({"--cell-mm", "inf", "-"}), 2, "", "--cell-mm"},
+        CliCase{"max_moves_zero", quick({"--max-moves", "0", "-"}), 2, "", "--max-moves"},
+        CliCase{"stock_box_absurd", quick({"--stock-box-mm", "-15,-15,0,15,15,1e300", "-"}), 2, "", "beyond ±1e6 mm"},
+        CliCase{"help_shows_ranges", {"--help"}, 0, "--tool-diameter-mm FLOAT:in (0, 200]", ""},
         CliCase{"threads", quick({"--threads", "1", "-"}), 0, "GOTO/", ""},
         CliCase{"part_name_spindle_coolant", quick({"--part-name", "dome", "--spindle-rpm", "9000", "--coolant", "-"}), 0,
                 "PARTNO/dome", ""},
@@ -218,6 +228,14 @@ TEST(CutsimCli, EveryOptionAndItsOutputs) {
   EXPECT_NE(r.err.find("none.cl"), std::string::npos) << r.err;
   r = run_tool("cutsim", {surf.string()});
   EXPECT_EQ(r.exit_code, 2) << "a CL program is required";
+  // Issue #25: numeric options checked at parse time (NaN, absurd values), before any file is read.
+  for (const auto& [option, value] : std::vector<std::pair<std::string, std::string>>{
+           {"--cell-mm", "nan"}, {"--allowance-mm", "-1"}, {"--plunge-angle-deg", "120"}, {"--stock-margin-mm", "1e300"},
+           {"--tool-diameter-mm", "inf"}, {"--corner-radius-mm", "nan"}, {"--threads", "-1"}}) {
+    r = run_tool("cutsim", {surf.string(), apt.string(), option, value});
+    EXPECT_EQ(r.exit_code, 2) << option << " " << value << ": " << r.err;
+    EXPECT_NE(r.err.find(option + ": '" + value + "' is not in "), std::string::npos) << r.err;
+  }
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include "formats/cl_data.hpp"
 #include "formats/error.hpp"
 #include "formats/log.hpp"
+#include "formats/option_checks.hpp"
 #include "formats/tool.hpp"
 #include "toolpath/input.hpp"
 #include "toolpath/roughing.hpp"
@@ -38,37 +39,37 @@ int main(int argc, char** argv) {
         app.add_option("surface", input, "Surface: photomill surface text, STEP or IGES ('-' = stdin)")->capture_default_str();
         app.add_option("-o,--output", output, "CL data output ('-' = stdout)")->capture_default_str();
         app.add_option("--format", format, "CL data format")->check(CLI::IsMember({"apt", "csv"}))->capture_default_str();
-        app.add_option("--face", face, "Face of a STEP/IGES file, 0-based in file order (default 0)");
-        app.add_option("--tool-diameter-mm", o.tool_diameter_mm, "End mill diameter (> 0)")->capture_default_str();
-        app.add_option("--corner-radius-mm", o.corner_radius_mm, "Corner radius: 0 flat, up to half the diameter (bull-nose)")->capture_default_str();
-        app.add_option("--step-down-mm", o.step_down_mm, "Depth between z levels (> 0)")->capture_default_str();
-        app.add_option("--step-over-mm", o.step_over_mm, "Between offset contours, up to the tool radius (0: 40 % of the diameter)")->capture_default_str();
-        app.add_option("--flat-tol-mm", o.flat_tol_mm, "A level at the top of each flat: tip heights within this over 2 % of the stock (0: none)")->capture_default_str();
-        app.add_option("--allowance-mm", o.allowance_mm, "Material left on the surface for finishing (>= 0)")->capture_default_str();
-        app.add_option("--stock-box-mm", box, "Stock XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (default: the surface's box grown by --stock-margin-mm)");
-        app.add_option("--stock-margin-mm", o.stock_margin_mm, "Default stock: this much around and above the surface")->capture_default_str();
+        app.add_option("--face", face, "Face of a STEP/IGES file, 0-based in file order (default 0)")->check(tool::finite_in(0, 1e6));
+        app.add_option("--tool-diameter-mm", o.tool_diameter_mm, "End mill diameter (> 0)")->capture_default_str()->check(tool::positive_up_to(200));
+        app.add_option("--corner-radius-mm", o.corner_radius_mm, "Corner radius: 0 flat, up to half the diameter (bull-nose)")->capture_default_str()->check(tool::non_negative_up_to(100));
+        app.add_option("--step-down-mm", o.step_down_mm, "Depth between z levels (> 0)")->capture_default_str()->check(tool::positive_up_to(1000));
+        app.add_option("--step-over-mm", o.step_over_mm, "Between offset contours, up to the tool radius (0: 40 % of the diameter)")->capture_default_str()->check(tool::non_negative_up_to(100));
+        app.add_option("--flat-tol-mm", o.flat_tol_mm, "A level at the top of each flat: tip heights within this over 2 % of the stock (0: none)")->capture_default_str()->check(tool::non_negative_up_to(1000));
+        app.add_option("--allowance-mm", o.allowance_mm, "Material left on the surface for finishing (>= 0)")->capture_default_str()->check(tool::non_negative_up_to(100));
+        app.add_option("--stock-box-mm", box, "Stock XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX, each within ±1e6 (default: the surface's box grown by --stock-margin-mm)");
+        app.add_option("--stock-margin-mm", o.stock_margin_mm, "Default stock: this much around and above the surface")->capture_default_str()->check(tool::non_negative_up_to(1e4));
         app.add_option("--direction", direction, "Milling direction with an M3 spindle")->check(CLI::IsMember({"climb", "conventional"}))->capture_default_str();
-        app.add_option("--ramp-angle-deg", o.ramp_angle_deg, "Steepest entry ramp or helix, (0, 30]")->capture_default_str();
-        app.add_option("--helix-radius-mm", o.helix_radius_mm, "Helix entry radius (0: half the tool radius)")->capture_default_str();
-        app.add_option("--feed-mm-per-min", o.feed_mm_per_min, "Cutting feed")->capture_default_str();
-        app.add_option("--plunge-feed-mm-per-min", o.plunge_feed_mm_per_min, "Feed of ramps, helices and descents")->capture_default_str();
-        app.add_option("--retract-mm", o.retract_mm, "Safe plane above the stock top")->capture_default_str();
-        app.add_option("--clearance-mm", o.clearance_mm, "Rapid down to this height above the material, then feed")->capture_default_str();
-        app.add_option("--cell-mm", o.cell_mm, "Grid spacing of the part's height map (> 0)")->capture_default_str();
-        app.add_option("--simplify-mm", o.simplify_mm, "Path simplification tolerance (0: half a cell)")->capture_default_str();
-        app.add_option("--max-moves", o.max_moves, "Work limit: more CL moves than this is an error")->capture_default_str();
-        app.add_option("--threads", o.threads, "Worker threads (0 = all cores)")->capture_default_str();
+        app.add_option("--ramp-angle-deg", o.ramp_angle_deg, "Steepest entry ramp or helix, (0, 30]")->capture_default_str()->check(tool::positive_up_to(30));
+        app.add_option("--helix-radius-mm", o.helix_radius_mm, "Helix entry radius (0: half the tool radius)")->capture_default_str()->check(tool::non_negative_up_to(100));
+        app.add_option("--feed-mm-per-min", o.feed_mm_per_min, "Cutting feed")->capture_default_str()->check(tool::positive_up_to(1e6));
+        app.add_option("--plunge-feed-mm-per-min", o.plunge_feed_mm_per_min, "Feed of ramps, helices and descents")->capture_default_str()->check(tool::positive_up_to(1e6));
+        app.add_option("--retract-mm", o.retract_mm, "Safe plane above the stock top")->capture_default_str()->check(tool::positive_up_to(1e4));
+        app.add_option("--clearance-mm", o.clearance_mm, "Rapid down to this height above the material, then feed")->capture_default_str()->check(tool::non_negative_up_to(1e4));
+        app.add_option("--cell-mm", o.cell_mm, "Grid spacing of the part's height map (> 0)")->capture_default_str()->check(tool::positive_up_to(100));
+        app.add_option("--simplify-mm", o.simplify_mm, "Path simplification tolerance (0: half a cell)")->capture_default_str()->check(tool::non_negative_up_to(400));
+        app.add_option("--max-moves", o.max_moves, "Work limit: more CL moves than this is an error")->capture_default_str()->check(tool::finite_in(1, 1e10));
+        app.add_option("--threads", o.threads, "Worker threads (0 = all cores)")->capture_default_str()->check(tool::non_negative_up_to(1024));
         app.add_option("--part-name", o.part_name, "PARTNO in the CL data")->capture_default_str();
-        app.add_option("--spindle-rpm", o.spindle_rpm, "Spindle speed written to the CL data (SPINDL)");
+        app.add_option("--spindle-rpm", o.spindle_rpm, "Spindle speed written to the CL data (SPINDL)")->check(tool::positive_up_to(1e6));
         app.add_flag("--coolant", o.coolant, "Coolant on during the program (COOLNT)");
         app.add_option("--rest-after", rest_after,
                        "Rest machining: clear only what this earlier CL program (APT, with its CUTTER) left of the stock; repeatable")
             ->allow_extra_args(false)
             ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
         app.add_option("--rest-min-mm", o.rest_min_mm, "Rest machining: material thinner than this above a level is left")
-            ->capture_default_str();
+            ->capture_default_str()->check(tool::positive_up_to(100));
         app.add_flag("--verify", verify, "Cut the stock on a z-map; report material left and any cut into the allowance");
-        app.add_option("--zmap-cell-mm", verify_cell_mm, "Z-map grid spacing for --verify")->capture_default_str();
+        app.add_option("--zmap-cell-mm", verify_cell_mm, "Z-map grid spacing for --verify")->capture_default_str()->check(tool::positive_up_to(100));
       },
       [&] {
         if (!box.empty()) o.stock = parse_stock_box(box);

@@ -564,6 +564,7 @@ StockBox parse_stock_box(const std::string& text) {
     if (field.empty() || r.ec != std::errc() || r.ptr != field.data() + field.size() || !std::isfinite(x)) {
       throw UsageError("--stock-box-mm: '" + field + "' is not a number (expected XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX)");
     }
+    if (std::abs(x) > 1e6) throw UsageError("--stock-box-mm: '" + field + "' is beyond ±1e6 mm, not a stock");
     v.push_back(x);
     at = comma + 1;
   }

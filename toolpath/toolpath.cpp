@@ -1,6 +1,7 @@
 #include "toolpath/toolpath.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -94,7 +95,8 @@ void move_stats(const ClData& cl, ToolpathStats& st);
 void validate(const ToolpathOptions& o) {
   const auto finite_pos = [](double v) { return std::isfinite(v) && v > 0; };
   const auto finite_nonneg = [](double v) { return std::isfinite(v) && v >= 0; };
-  require(finite_pos(o.tool_radius_mm), "--tool-radius-mm must be > 0");
+  require(finite_pos(o.tool_radius_mm) && o.tool_radius_mm <= kMaxToolRadiusMm,
+          "--tool-radius-mm must be > 0 and at most " + mm(kMaxToolRadiusMm));
   require(finite_pos(o.scallop_mm), "--scallop-mm must be > 0");
   require(o.scallop_mm < o.tool_radius_mm, "--scallop-mm must be below the tool radius");
   require(finite_pos(o.chord_tol_mm), "--chord-tol-mm must be > 0");
@@ -113,6 +115,7 @@ void validate(const ToolpathOptions& o) {
   require(finite_pos(o.drop_sample_mm), "--drop-sample-mm must be > 0");
   require(finite_pos(o.side_sample_mm), "--side-sample-mm must be > 0");
   require(o.threads >= 0, "--threads must be >= 0");
+  require(o.max_cl_points > 0, "--max-cl-points must be > 0");
   require(!o.spindle_rpm || finite_pos(*o.spindle_rpm), "--spindle-rpm must be > 0");
   require(o.part_name.find_first_of("\r\n") == std::string::npos, "--part-name must be one line");
 }
@@ -158,6 +161,9 @@ ToolpathResult generate_toolpath(const BSplineSurface& input, const ToolpathOpti
   forward.gouge_tol_mm = o.gouge_tol_mm;
   forward.max_step_mm = o.max_step_mm;
   forward.enforce_gouge = o.lift;
+  std::atomic<std::size_t> points_taken{0};
+  forward.points_taken = &points_taken;
+  forward.max_points = o.max_cl_points;
   const std::vector<WorkItem> items = work_items(surface, o, result.lines, result.stats.edge_passes);
 
   // Steps 2, 3, 4 (and 7) on every piece, in parallel: each writes only its own slot.

@@ -21,6 +21,18 @@ namespace photomill::toolpath {
 
 enum class Pattern { ZigZag, OneWay };
 
+// The largest ball radius accepted (mm): ball-end mills stop near 25 mm (a 50 mm ball); a radius
+// of kilometres (1e9 mm was tried: no answer within 60 s) is a typing error, not a tool. The
+// drop cutter looks at every surface sample within R, so the time grows with R^2: on the demo's
+// surface R 3 takes 4.4 s, R 25 24 s, R 100 101 s.
+constexpr double kMaxToolRadiusMm = 50;
+
+// Default work limit (--max-cl-points): CL points computed while stepping along the passes, kept
+// or rejected. The demo's finishing (Makefile.example: R 3, h 0.01, e 0.005) keeps 86 992 in
+// 4.4 s, freeform_face.step 29 954; the default is 23 times the demo, and a runaway stops there
+// (about 100 s at the demo's rate) with an error naming the option instead of running on.
+constexpr std::size_t kDefaultMaxClPoints = 2'000'000;
+
 struct ToolpathOptions {
   double tool_radius_mm = 3;         // R, ball end
   double scallop_mm = 0.01;          // h: highest material left above the surface (cusps + chords)
@@ -40,6 +52,7 @@ struct ToolpathOptions {
   double drop_sample_mm = 0.5;       // drop-cutter sample spacing on the surface
   double side_sample_mm = 1;         // spacing of the side-step samples along a pass
   int threads = 0;                   // 0 = all cores
+  std::size_t max_cl_points = kDefaultMaxClPoints;  // work limit: more CL points is an error
   // Carried into the CL data.
   std::string part_name = "photomill";
   std::optional<double> spindle_rpm;

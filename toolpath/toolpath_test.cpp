@@ -4,6 +4,9 @@
 #include "toolpath/toolpath.hpp"
 
 #include <cmath>
+#include <numbers>
+#include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -276,6 +279,76 @@ TEST(Structure, ZigZagAlternatesAndSafeZIsAboveEverything) {
   EXPECT_EQ(points, r.stats.cl_points);
   EXPECT_EQ(r.cl.moves.size(), r.stats.moves);
   EXPECT_EQ(r.cl.tool_diameter_mm, 6.0);
+}
+
+}  // namespace
+}  // namespace photomill::toolpath
+
+namespace photomill::toolpath {
+namespace {
+
+// A bicubic 7 x 4 net over 150 x 100 mm whose heights rise to a ridge at u = 0.5, with the given
+// interior knots along u: three equal ones make a crease there (only C0, a convex edge).
+BSplineSurface ridge_with_knots_u(const std::vector<double>& interior) {
+  BSplineSurface s;
+  s.degree_u = s.degree_v = 3;
+  s.num_poles_u = 7;
+  s.num_poles_v = 4;
+  s.knots_u = {0, 0, 0, 0};
+  s.knots_u.insert(s.knots_u.end(), interior.begin(), interior.end());
+  s.knots_u.insert(s.knots_u.end(), {1, 1, 1, 1});
+  s.knots_v = {0, 0, 0, 0, 1, 1, 1, 1};
+  for (int i = 0; i < 7; ++i) {
+    for (int j = 0; j < 4; ++j) {
+      s.poles_mm.emplace_back(-75 + 25.0 * i, -50 + 100.0 * j / 3,
+                              5 + 20 * std::sin(std::numbers::pi * i / 6) * std::sin(std::numbers::pi * j / 3));
+    }
+  }
+  return s;
+}
+
+// Issue #25: a crease (knots 0.5 0.5 0.5), and nearly coincident knots (0.5, 0.5 + 1e-15,
+// 0.5 + 2e-15), ran for hours: next to the crease the shortened step rounded to the same t again
+// and again, and a golden-section search on a sub-curve a few ulp long asked for a bracket below
+// rounding. Both are now the kink error, in under a second; the work limit makes the old code
+// fail this test instead of hanging it.
+TEST(Toolpath, CreaseIsAKinkErrorNotAnEndlessMarch) {
+  for (const auto& interior : {std::vector<double>{0.5, 0.5, 0.5}, std::vector<double>{0.5, 0.5 + 1e-15, 0.5 + 2e-15}}) {
+    ToolpathOptions o;
+    o.scallop_mm = 0.05;
+    o.chord_tol_mm = 0.02;
+    o.max_cl_points = 200'000;  // the whole path is ~10 000
+    try {
+      generate_toolpath(ridge_with_knots_u(interior), o);
+      ADD_FAILURE() << "a crease gave a path";
+    } catch (const GeometryError& e) {
+      EXPECT_NE(std::string(e.what()).find("kink"), std::string::npos) << e.what();
+    }
+  }
+}
+
+// The work limit: more CL points computed than --max-cl-points is an error naming the option.
+TEST(Toolpath, WorkLimitStopsThePathNamingTheOption) {
+  ToolpathOptions o;
+  o.scallop_mm = 0.05;
+  o.chord_tol_mm = 0.02;
+  o.max_cl_points = 500;
+  try {
+    generate_toolpath(ridge_with_knots_u({0.25, 0.5, 0.75}), o);
+    ADD_FAILURE() << "the limit did not stop the path";
+  } catch (const GeometryError& e) {
+    EXPECT_NE(std::string(e.what()).find("--max-cl-points"), std::string::npos) << e.what();
+  }
+  o.max_cl_points = 0;
+  EXPECT_THROW(validate(o), UsageError);
+}
+
+TEST(Toolpath, AbsurdToolRadiusIsBadUsage) {
+  ToolpathOptions o;
+  o.tool_radius_mm = 1e9;
+  EXPECT_THROW(validate(o), UsageError);
+  o.tool_radius_mm = kMaxToolRadiusMm;
+  EXPECT_NO_THROW(validate(o));
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 
 #include "formats/camera_bounds.hpp"
 #include "formats/error.hpp"
+#include "formats/option_checks.hpp"
 #include "formats/text.hpp"
 #include "formats/tool.hpp"
 #include "triangulate/colmap.hpp"
@@ -75,16 +76,16 @@ void add_options(CLI::App& app, Cli& c) {
   const std::string scale = "Scale without control points";
   app.add_option("--scale-bars", c.scale_bars, "Scale bars CSV (point_a,point_b,distance_mm[,sigma_mm])")->group(scale);
   app.add_option("--scale-bar-sigma-mm", o.scale.default_bar_sigma_mm, "Sigma of scale bars that give none")
-      ->check(CLI::PositiveNumber)->capture_default_str()->group(scale);
+      ->check(tool::positive_up_to(1000))->capture_default_str()->group(scale);
   app.add_option("--marker-side-mm", c.marker_side_mm, "Side of the square markers: each side becomes a scale bar")
-      ->check(CLI::PositiveNumber)->group(scale);
+      ->check(tool::positive_up_to(1e4))->group(scale);
   app.add_option("--marker-side-sigma-mm", o.scale.marker_side_sigma_mm, "Sigma of a marker side")
-      ->check(CLI::PositiveNumber)->capture_default_str()->group(scale);
+      ->check(tool::positive_up_to(1000))->capture_default_str()->group(scale);
   app.add_option("--marker-ids", c.marker_ids, "Marker ids the side applies to (ranges: 0-27,40)")
       ->capture_default_str()->group(scale);
   app.add_option("--marker-side-tolerance", o.scale.marker_side_tolerance,
                  "Leave out marker sides further than this fraction from the median side")
-      ->check(CLI::PositiveNumber)->capture_default_str()->group(scale);
+      ->check(tool::positive_up_to(10))->capture_default_str()->group(scale);
   app.add_flag("--arbitrary-scale", o.scale.allow_arbitrary_scale,
                "Without any datum, go on in the arbitrary scale of the first image pair")->group(scale);
 
@@ -94,9 +95,9 @@ void add_options(CLI::App& app, Cli& c) {
                  "cam_from_world, mm): held fixed, or priors with --pose-sigma-mm/--pose-sigma-deg; "
                  "they are the datum")->group(known);
   app.add_option("--pose-sigma-mm", o.pose_sigma_mm, "Sigma of a known camera centre per axis (with --pose-sigma-deg)")
-      ->check(CLI::PositiveNumber)->group(known);
+      ->check(tool::positive_up_to(1e6))->group(known);
   app.add_option("--pose-sigma-deg", o.pose_sigma_deg, "Sigma of a known camera rotation per axis (with --pose-sigma-mm)")
-      ->check(CLI::PositiveNumber)->group(known);
+      ->check(tool::positive_up_to(180))->group(known);
 
   const std::string ba = "Bundle adjustment";
   app.add_option("--refine-intrinsics", c.refine_intrinsics, "Self-calibration: which intrinsics to adjust")
@@ -104,46 +105,49 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--loss", c.loss, "Robust loss on reprojection errors")
       ->check(CLI::IsMember(keys(kLoss)))->capture_default_str()->group(ba);
   app.add_option("--loss-scale-px", o.bundle.loss_scale_px, "Scale of the robust loss, pixels")
-      ->check(CLI::PositiveNumber)->capture_default_str()->group(ba);
+      ->check(tool::positive_up_to(1e4))->capture_default_str()->group(ba);
   app.add_option("--observation-sigma-px", c.observation_sigma_px,
                  "Sigma of an image measurement [default: estimated from the residuals, per class]")
-      ->check(CLI::PositiveNumber)->group(ba);
+      ->check(tool::positive_up_to(1000))->group(ba);
   app.add_option("--coded-id-limit", o.coded_id_limit,
                  "Track ids below this are coded targets (marker corners), the rest natural features; "
                  "each class gets its own sigma")
-      ->check(CLI::NonNegativeNumber)->capture_default_str()->group(ba);
+      ->check(tool::non_negative_up_to(4e9))->capture_default_str()->group(ba);
   app.add_flag("!--ignore-feature-size", o.weight_by_feature_size,
                "Weigh every observation of a class alike, even when the tracks give each feature's size_px "
                "[default: sigma grows with the feature's size]")
       ->group(ba);
   app.add_option("--outlier-sigmas", o.outliers.sigmas, "Remove observations beyond this many sigmas ...")
-      ->check(CLI::PositiveNumber)->capture_default_str()->group(ba);
+      ->check(tool::positive_up_to(1e4))->capture_default_str()->group(ba);
   app.add_option("--outlier-min-px", o.outliers.min_px, "... but never below this threshold ...")
-      ->check(CLI::NonNegativeNumber)->capture_default_str()->group(ba);
+      ->check(tool::non_negative_up_to(1e4))->capture_default_str()->group(ba);
   app.add_option("--outlier-max-px", o.outliers.max_px, "... and always beyond this one")
-      ->check(CLI::PositiveNumber)->capture_default_str()->group(ba);
+      ->check(tool::positive_up_to(1e6))->capture_default_str()->group(ba);
   app.add_option("--outlier-rounds", o.outliers.rounds, "Outlier removal and re-solve rounds")
       ->check(CLI::Range(0, 100))->capture_default_str()->group(ba);
   app.add_option("--solver", c.solver, "Ceres linear solver")
       ->check(CLI::IsMember(keys(kSolver)))->capture_default_str()->group(ba);
   app.add_option("--max-iterations", o.bundle.max_iterations, "Ceres iterations per adjustment")
       ->check(CLI::Range(1, 100000))->capture_default_str()->group(ba);
+  app.add_option("--max-total-iterations", o.max_total_iterations,
+                 "Work limit: Ceres iterations summed over all adjustments of the run; more is an error")
+      ->check(tool::finite_in(1, 1e9))->capture_default_str()->group(ba);
   app.add_option("--function-tolerance", o.bundle.function_tolerance, "Stop when the cost decreases by less (relative)")
-      ->check(CLI::PositiveNumber)->capture_default_str()->group(ba);
+      ->check(tool::positive_up_to(1))->capture_default_str()->group(ba);
   app.add_option("--covariance-max-parameters", o.covariance.max_reduced_parameters,
                  "Largest reduced camera system inverted for the full point covariance")
-      ->capture_default_str()->group(ba);
+      ->capture_default_str()->check(tool::non_negative_up_to(1e6))->group(ba);
   app.add_option("--threads", o.threads, "Threads (0: all cores)")->check(CLI::Range(0, 1024))->capture_default_str()->group(ba);
 
   const std::string geo = "Poses and triangulation";
   app.add_option("--min-angle-deg", o.triangulation.min_angle_deg, "Smallest intersection angle of a track's rays")
-      ->check(CLI::NonNegativeNumber)->capture_default_str()->group(geo);
+      ->check(tool::non_negative_up_to(180))->capture_default_str()->group(geo);
   app.add_option("--max-reproj-px", o.triangulation.max_reproj_px, "Largest reprojection error when triangulating")
-      ->check(CLI::PositiveNumber)->capture_default_str()->group(geo);
+      ->check(tool::positive_up_to(1e4))->capture_default_str()->group(geo);
   app.add_option("--ransac-threshold-px", o.ransac.threshold_px, "RANSAC inlier threshold (PnP, essential matrix)")
-      ->check(CLI::PositiveNumber)->capture_default_str()->group(geo);
+      ->check(tool::positive_up_to(1e4))->capture_default_str()->group(geo);
   app.add_option("--ransac-confidence", o.ransac.confidence, "RANSAC confidence")
-      ->check(CLI::Range(0.5, 1.0))->capture_default_str()->group(geo);
+      ->check(tool::finite_in(0.5, 1))->capture_default_str()->group(geo);
   app.add_option("--ransac-iterations", o.ransac.max_iterations, "RANSAC iterations at most")
       ->check(CLI::Range(1, 10000000))->capture_default_str()->group(geo);
   app.add_option("--control-min-points", o.control_min_points, "Control points an image needs for PnP from them")
@@ -157,7 +161,7 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--min-shared-tracks", o.min_shared_tracks, "Tracks an initial image pair must share")
       ->check(CLI::Range(5, 1000000))->capture_default_str()->group(geo);
   app.add_option("--initial-min-angle-deg", o.initial_min_angle_deg, "Median intersection angle of the initial pair")
-      ->check(CLI::NonNegativeNumber)->capture_default_str()->group(geo);
+      ->check(tool::non_negative_up_to(180))->capture_default_str()->group(geo);
   tool::add_presets(app, c.preset,
                     {{"features",
                       {{"--refine-intrinsics", [&c] { c.refine_intrinsics = "all"; }},

@@ -262,6 +262,18 @@ INSTANTIATE_TEST_SUITE_P(
         // Poses and triangulation
         // No track's rays meet at 120 degrees or more.
         OptionCase{"min_angle_deg", Scene::Plain, {"--min-angle-deg", "120"}, 1, "small_angle", nullptr},
+        // Issue #25: NaN, infinities and absurd values are bad usage at parse time (CLI::PositiveNumber
+        // and CLI::Range let NaN through), the range in --help.
+        OptionCase{"min_angle_deg_nan", Scene::Plain, {"--min-angle-deg", "nan"}, 2, "--min-angle-deg: 'nan' is not in [0, 180]", nullptr},
+        OptionCase{"max_reproj_px_inf", Scene::Plain, {"--max-reproj-px", "inf"}, 2, "--max-reproj-px: 'inf' is not in (0, 10000]", nullptr},
+        OptionCase{"function_tolerance_nan", Scene::Plain, {"--function-tolerance", "nan"}, 2, "--function-tolerance", nullptr},
+        OptionCase{"ransac_confidence_nan", Scene::Plain, {"--ransac-confidence", "nan"}, 2, "--ransac-confidence", nullptr},
+        // The work limit: Ceres iterations over all adjustments; a few are not enough for the scene.
+        OptionCase{"max_total_iterations", Scene::Plain, {"--max-total-iterations", "3"}, 1,
+                   "Ceres iterations in all, the work limit --max-total-iterations", nullptr},
+        OptionCase{"max_total_iterations_zero", Scene::Plain, {"--max-total-iterations", "0"}, 2, "--max-total-iterations", nullptr},
+        OptionCase{"covariance_max_parameters_absurd", Scene::Plain, {"--covariance-max-parameters", "1e12"}, 2,
+                   "--covariance-max-parameters", nullptr},
         bad("min_angle_deg_negative", {"--min-angle-deg", "-1"}, "--min-angle-deg"),
         OptionCase{"max_reproj_px", Scene::Outliers, {"--max-reproj-px", "100", "--outlier-rounds", "0"}, 0, "",
                    [](const Outcome& r) { EXPECT_GT(json_number(r.report, "final_rms_px"), 0); }},

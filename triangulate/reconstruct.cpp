@@ -75,6 +75,7 @@ private:
   std::size_t last_ba_registered_ = 0;
   std::set<std::size_t> relative_tried_;  // images once registered from a relative pose (only once)
   BundleSummary last_;
+  long long iterations_used_ = 0;  // Ceres iterations of all adjustments so far (the work limit)
 };
 
 void Pipeline::check_input() {
@@ -496,7 +497,19 @@ bool Pipeline::register_by_relative_pose(const std::set<std::size_t>& skip) {
 }
 
 BundleSummary Pipeline::adjust(const BundleSetup& setup) {
-  last_ = bundle_adjust(scene_, setup, o_.bundle);
+  // The work limit: each adjustment may take what is left of --max-total-iterations.
+  const long long left = o_.max_total_iterations - iterations_used_;
+  const auto over = [&] {
+    return GeometryError("the bundle adjustments need more than " + std::to_string(o_.max_total_iterations) +
+                         " Ceres iterations in all, the work limit --max-total-iterations: raise it for a job this large");
+  };
+  if (left <= 0) throw over();
+  BundleOptions bundle = o_.bundle;
+  bundle.max_iterations = static_cast<int>(std::min<long long>(bundle.max_iterations, left));
+  last_ = bundle_adjust(scene_, setup, bundle);
+  iterations_used_ += std::max(last_.iterations, 1);
+  // Cut short by the limit (not by --max-iterations): the result would be less converged than asked.
+  if (bundle.max_iterations < o_.bundle.max_iterations && last_.iterations >= bundle.max_iterations) throw over();
   ++report_.adjustments;
   report_.adjustment_seconds += last_.seconds;
   report_.solver = last_.solver;

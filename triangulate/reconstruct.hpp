@@ -62,6 +62,10 @@ struct OutlierOptions {
 struct ReconstructOptions {
   TriangulationOptions triangulation;
   BundleOptions bundle;
+  // Work limit (--max-total-iterations): Ceres iterations summed over every bundle adjustment of
+  // the run (one per registered image, the outlier rounds, the final one). More is an error
+  // naming the option, not a run without end; each adjustment gets at most what is left.
+  long long max_total_iterations = 50'000;
   RansacOptions ransac;
   CovarianceOptions covariance;
   ScaleOptions scale;
