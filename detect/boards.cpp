@@ -13,6 +13,7 @@
 
 #include "formats/error.hpp"
 #include "formats/image.hpp"
+#include "formats/image_decode.hpp"
 #include "geometry/parallel.hpp"
 
 namespace photomill::detect {
@@ -180,9 +181,7 @@ std::vector<ImageDetection> detect_boards(const std::vector<std::string>& images
   std::vector<ImageDetection> results(images.size());
   std::mutex report_mutex;
   geometry::parallel_for(images.size(), options.jobs, [&](std::size_t i) {
-    check_image_file(images[i]);
-    const cv::Mat grey = cv::imread(images[i], cv::IMREAD_GRAYSCALE);
-    if (grey.empty()) throw InputError(images[i], 0, "not a readable image");
+    const cv::Mat grey = read_image(images[i], cv::IMREAD_GRAYSCALE);
     results[i] = detect_board(grey, images[i], spec, options);
     if (on_pixels) on_pixels(grey, results[i]);
     if (on_image) {

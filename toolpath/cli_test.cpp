@@ -99,7 +99,7 @@ INSTANTIATE_TEST_SUITE_P(
         CliCase{"clpost_bad_coolant", "clpost", {"--coolant", "mist"}, "", 2, "", "--coolant"},
         CliCase{"clpost_nan_safe_z", "clpost", {"--safe-z-mm", "nan"},
                 "UNITS/MM\nRAPID\nGOTO/0,0,20\nFEDRAT/MMPM,800\nGOTO/0,0,5\nEND\nFINI\n", 2, "",
-                "--safe-z-mm must be a finite number"},
+                "clpost: --safe-z-mm: Value nan is not a finite number (see --help)\n"},
         CliCase{"clpost_zero_spindle", "clpost", {"--spindle-rpm", "0"},
                 "UNITS/MM\nRAPID\nGOTO/0,0,20\nFEDRAT/MMPM,800\nGOTO/0,0,5\nEND\nFINI\n", 2, "",
                 "--spindle-rpm must be a positive number"},
