@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <clocale>
 #include <cmath>
@@ -137,12 +138,22 @@ void remember_temp_name(const std::string& temp, const std::string& name) {
   g_temp_names.emplace_back(temp, name);
 }
 
-std::string with_output_names(std::string message) {
-  const std::lock_guard<std::mutex> lock(g_names_mutex);
-  for (const auto& [temp, name] : g_temp_names) {
-    for (std::size_t at = 0; (at = message.find(temp, at)) != std::string::npos; at += name.size()) {
-      message.replace(at, temp.size(), name);
+// A refusal's message as the one line run() prints: the outputs' names in place of temporary
+// names, and on one line (OpenCV's exceptions, for one, end in a newline and may hold several).
+std::string message_line(std::string message) {
+  {
+    const std::lock_guard<std::mutex> lock(g_names_mutex);
+    for (const auto& [temp, name] : g_temp_names) {
+      for (std::size_t at = 0; (at = message.find(temp, at)) != std::string::npos; at += name.size()) {
+        message.replace(at, temp.size(), name);
+      }
     }
+  }
+  while (!message.empty() && std::isspace(static_cast<unsigned char>(message.back()))) message.pop_back();
+  for (std::size_t at = 0; (at = message.find_first_of("\r\n", at)) != std::string::npos;) {
+    const std::size_t end = message.find_first_not_of(" \t\r\n", at);
+    message.replace(at, end - at, "; ");
+    at += 2;
   }
   return message;
 }
@@ -279,13 +290,13 @@ int run(int argc, char** argv, const ToolSpec& spec,
     rename_staged();
     return 0;
   } catch (const UsageError& e) {
-    std::cerr << spec.name << ": " << with_output_names(e.what()) << "\n";
+    std::cerr << spec.name << ": " << message_line(e.what()) << "\n";
     return 2;
   } catch (const std::bad_alloc&) {
     std::cerr << spec.name << ": out of memory\n";
     return 1;
   } catch (const std::exception& e) {
-    std::cerr << spec.name << ": " << with_output_names(e.what()) << "\n";
+    std::cerr << spec.name << ": " << message_line(e.what()) << "\n";
     return 1;
   }
 }
