@@ -139,7 +139,8 @@ std::vector<std::string> expand_image_arguments(const std::vector<std::string>& 
       if (first && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);  // a UTF-8 byte-order mark
       first = false;
       if (!line.empty() && line.back() == '\r') line.pop_back();
-      if (!line.empty() && line[0] != '#') images.push_back(line);
+      // Blank lines (spaces only too) and comments name no photo.
+      if (line.find_first_not_of(" \t") != std::string::npos && line[0] != '#') images.push_back(line);
     }
   }
   // The same photo twice would give every point twice in one image, which no stage accepts.
