@@ -19,6 +19,7 @@
 #include "calib/init.hpp"
 #include "formats/error.hpp"
 #include "formats/image.hpp"
+#include "formats/image_decode.hpp"
 
 namespace photomill::calib {
 namespace {
@@ -415,9 +416,7 @@ std::optional<cv::Size> image_size_from_files(const std::vector<Observation>& ob
     // Images that are not here (the observations came from elsewhere): the size must be given.
     // Images that are here but broken: say which and why (no OpenCV warning on stderr).
     if (!image_file_exists(o.image)) return std::nullopt;
-    check_image_file(o.image);
-    const cv::Mat img = cv::imread(o.image, cv::IMREAD_UNCHANGED);
-    if (img.empty()) throw InputError(o.image, 0, "not a readable image");
+    const cv::Mat img = read_image(o.image, cv::IMREAD_UNCHANGED);
     if (!size) {
       size = img.size();
       first = o.image;

@@ -28,7 +28,7 @@ void add_options(CLI::App& app, CalibCli& c) {
   ctl->excludes(cb)->excludes(ch);
   cb->excludes(ch);
   app.add_option("--square-mm", c.square_mm, "Board square side, mm (sets the unit of the poses only)")
-      ->group(g_in)->capture_default_str();
+      ->group(g_in)->capture_default_str()->check(tool::Above(0.0, 10000.0));
   app.add_option("--image-size", c.image_size, "WxH in px (default: read from the images the observations name)");
 
   const std::string g_m = "Method";
@@ -44,23 +44,23 @@ void add_options(CLI::App& app, CalibCli& c) {
   app.add_flag("--fix-k3", o.model.fix_k3, "k3 = 0")->group(g_m);
   app.add_flag("--rational-model", o.model.rational, "Estimate k4, k5, k6 too (8 coefficients)")->group(g_m);
   app.add_option("--max-iterations", o.lm.max_iterations, "LM iterations (lm, opencv)")
-      ->group(g_m)->capture_default_str()->check(CLI::PositiveNumber);
+      ->group(g_m)->capture_default_str()->check(CLI::Range(1, 1'000'000));
   app.add_option("--simplex-scaling", c.simplex_scaling,
                  "Simplex coordinates: jacobian (whitened by J^T J at each restart) or diagonal (fixed steps)")
       ->group(g_m)->capture_default_str()->check(CLI::IsMember({"jacobian", "diagonal"}));
   app.add_option("--simplex-max-evaluations", o.simplex.simplex.max_evaluations, "Simplex: cost evaluations at most")
-      ->group(g_m)->capture_default_str()->check(CLI::PositiveNumber);
+      ->group(g_m)->capture_default_str()->check(CLI::Range(1, 100'000'000));
   app.add_option("--simplex-ftol", o.simplex.simplex.ftol, "Simplex: relative spread of the vertex costs that ends a run")
-      ->group(g_m)->capture_default_str()->check(CLI::PositiveNumber);
+      ->group(g_m)->capture_default_str()->check(tool::Above(0.0, 1.0));
 
   const std::string g_q = "Quality";
   app.add_option("--reject-factor", o.reject_factor,
                  "Reject the worst view while its RMS > FACTOR x median view RMS (0: never)")
-      ->group(g_q)->capture_default_str()->check(CLI::NonNegativeNumber);
+      ->group(g_q)->capture_default_str()->check(CLI::Range(0.0, 1000.0));
   app.add_option("--reject-min-px", o.reject_min_px, "... and > this RMS, px")
-      ->group(g_q)->capture_default_str()->check(CLI::NonNegativeNumber);
+      ->group(g_q)->capture_default_str()->check(CLI::Range(0.0, 10000.0));
   app.add_option("--min-views", o.min_views, "Warn below this many views; rejection keeps at least this many")
-      ->group(g_q)->capture_default_str()->check(CLI::PositiveNumber);
+      ->group(g_q)->capture_default_str()->check(CLI::Range(1, 100'000));
   app.add_option("--min-points", o.min_points_per_view, "Skip views with fewer control-point observations")
       ->group(g_q)->capture_default_str()->check(CLI::Range(4, 1000000));
   app.add_option("--report", c.report, "Write a JSON report to FILE")->group(g_q);

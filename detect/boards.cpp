@@ -13,6 +13,7 @@
 
 #include "formats/error.hpp"
 #include "formats/image.hpp"
+#include "formats/image_decode.hpp"
 #include "geometry/parallel.hpp"
 
 namespace photomill::detect {
@@ -138,7 +139,8 @@ std::vector<std::string> expand_image_arguments(const std::vector<std::string>& 
       if (first && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);  // a UTF-8 byte-order mark
       first = false;
       if (!line.empty() && line.back() == '\r') line.pop_back();
-      if (!line.empty() && line[0] != '#') images.push_back(line);
+      // Blank lines (spaces only too) and comments name no photo.
+      if (line.find_first_not_of(" \t") != std::string::npos && line[0] != '#') images.push_back(line);
     }
   }
   // The same photo twice would give every point twice in one image, which no stage accepts.
@@ -180,9 +182,7 @@ std::vector<ImageDetection> detect_boards(const std::vector<std::string>& images
   std::vector<ImageDetection> results(images.size());
   std::mutex report_mutex;
   geometry::parallel_for(images.size(), options.jobs, [&](std::size_t i) {
-    check_image_file(images[i], options.max_image_pixels);
-    const cv::Mat grey = cv::imread(images[i], cv::IMREAD_GRAYSCALE);
-    if (grey.empty()) throw InputError(images[i], 0, "not a readable image");
+    const cv::Mat grey = read_image(images[i], cv::IMREAD_GRAYSCALE, options.max_image_pixels);
     results[i] = detect_board(grey, images[i], spec, options);
     if (on_pixels) on_pixels(grey, results[i]);
     if (on_image) {

@@ -94,8 +94,8 @@ void add_photo_options(CLI::App& app, PhotoCli& c) {
       ->group(drawings);
   app.add_option("--draw-format", c.draw.format, "Drawings as jpg (small) or png")
       ->group(drawings)->capture_default_str()->check(CLI::IsMember({"jpg", "png"}));
-  app.add_option("--draw-max-width-px", c.draw.max_width_px, "Drawings of wider photos are scaled down to this width (0: full size)")
-      ->group(drawings)->capture_default_str()->check(CLI::NonNegativeNumber);
+  app.add_option("--draw-max-width-px", c.draw.max_width_px, "Drawings of wider photos are scaled down to this width (0: full size, else at least 100)")
+      ->group(drawings)->capture_default_str()->check(CLI::Range(0, 100'000));
   tool::add_presets(app, c.preset,
                     {{"features",
                       {{"--mask-markers", [&c] { c.options.mask_markers = true; }},

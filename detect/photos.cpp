@@ -8,6 +8,7 @@
 
 #include "formats/error.hpp"
 #include "formats/image.hpp"
+#include "formats/image_decode.hpp"
 #include "geometry/parallel.hpp"
 
 namespace photomill::detect {
@@ -29,9 +30,7 @@ void detect_photos(const std::vector<std::string>& images, const PhotoOptions& o
   std::mutex mutex;
   bool failed = false;  // guarded by mutex: results still in flight after a failure are not delivered
   auto detect_one = [&](std::size_t i) {
-    check_image_file(images[i], options.max_image_pixels);
-    const cv::Mat grey = cv::imread(images[i], cv::IMREAD_GRAYSCALE);
-    if (grey.empty()) throw InputError(images[i], 0, "not a readable image");
+    const cv::Mat grey = read_image(images[i], cv::IMREAD_GRAYSCALE, options.max_image_pixels);
     PhotoResult r;
     r.index = i;
     if (options.dictionary) r.markers = detect_markers(grey, images[i], *options.dictionary, options.markers);

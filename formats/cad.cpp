@@ -333,12 +333,23 @@ TopoDS_Face make_face(const Handle(Geom_BSplineSurface)& g, const std::vector<Ei
 std::ofstream open_output(const std::string& path) {
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   if (!out) throw InputError(path, 0, std::string("cannot create file: ") + std::strerror(errno));
+  errno = 0;  // a failed write while printing leaves its reason here (close_output)
   return out;
 }
 
+// Flushes and closes `out`, which a writer has printed to; InputError with the system's reason
+// (a full disk) unless every byte was written, close included.
 void close_output(std::ofstream& out, bool printed, const std::string& path) {
+  int error = out ? 0 : errno;  // a write failed while printing: nothing was written since
+  if (error == 0) {
+    out.flush();
+    if (!out) error = errno;
+  }
   out.close();
-  if (!printed || !out) throw InputError(path, 0, "write failed");
+  if (error == 0 && !out) error = errno;
+  if (!printed || !out) {
+    throw InputError(path, 0, std::string("write failed") + (error != 0 ? std::string(": ") + std::strerror(error) : ""));
+  }
 }
 
 // ---------------------------------------------------------------------------------------------

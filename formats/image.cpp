@@ -9,6 +9,10 @@
 #include <iterator>
 #include <string_view>
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include "formats/error.hpp"
 
 namespace photomill {
@@ -83,7 +87,40 @@ bool image_file_exists(const std::string& path) {
   return std::filesystem::exists(path, ec);
 }
 
-void check_image_file(const std::string& path, std::uint64_t max_pixels) {
+void check_image_file(const std::string& path, std::uint64_t max_pixels) { (void)read_image_file(path, max_pixels); }
+
+namespace {
+
+// The whole regular file `path`, every read error named.
+std::string read_whole_file(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw InputError(path, 0, std::string("cannot open: ") + std::strerror(errno));
+  struct stat st {};
+  std::string d;
+  if (::fstat(fd, &st) == 0 && st.st_size > 0) d.reserve(static_cast<std::size_t>(st.st_size));
+  char buf[1 << 16];
+  for (;;) {
+    const ssize_t n = ::read(fd, buf, sizeof buf);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      const std::string reason = std::strerror(errno);
+      ::close(fd);
+      throw InputError(path, 0, "read error: " + reason);
+    }
+    if (n == 0) break;
+    d.append(buf, static_cast<std::size_t>(n));
+    if (d.size() > kMaxImageBytes) {
+      ::close(fd);
+      throw InputError(path, 0, "larger than " + std::to_string(kMaxImageBytes) + " bytes, more than a photo may have");
+    }
+  }
+  ::close(fd);
+  return d;
+}
+
+}  // namespace
+
+std::string read_image_file(const std::string& path, std::uint64_t max_pixels) {
   namespace fs = std::filesystem;
   std::error_code ec;
   const auto status = fs::status(path, ec);
@@ -97,9 +134,7 @@ void check_image_file(const std::string& path, std::uint64_t max_pixels) {
   if (fs::file_size(path, ec) > kMaxImageBytes) {
     throw InputError(path, 0, "larger than " + std::to_string(kMaxImageBytes) + " bytes, more than a photo may have");
   }
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw InputError(path, 0, std::string("cannot open: ") + std::strerror(errno));
-  const std::string d((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  std::string d = read_whole_file(path);
   if (d.empty()) throw InputError(path, 0, "empty file, not an image");
   std::uint64_t width = 0, height = 0;
   if (d.size() >= 8 && d.compare(0, 8, std::string_view("\x89PNG\r\n\x1a\n", 8)) == 0) {
@@ -115,6 +150,7 @@ void check_image_file(const std::string& path, std::uint64_t max_pixels) {
                                   mpx(width * height) + " Mpx), more than the " + mpx(max_pixels) +
                                   " Mpx a photo may have (the pixel limit; detect takes --max-image-mpx)");
   }
+  return d;
 }
 
 }  // namespace photomill

@@ -25,6 +25,12 @@ inline constexpr std::uint64_t kMaxImageBytes = std::uint64_t{1} << 31;
 // allowed). Other formats (TIFF, BMP, ...) are left to the decoder.
 void check_image_file(const std::string& path, std::uint64_t max_pixels = kMaxImagePixels);
 
+// check_image_file, returning the file's bytes: the one read of the photo, whose errors name it
+// ("a.png: read error: Input/output error"); callers decode these bytes (formats/image_decode.hpp)
+// instead of letting the decoder open the file again, through stdio, whose read errors would
+// look like a broken image (and a file changed in between would not be the one checked).
+std::string read_image_file(const std::string& path, std::uint64_t max_pixels = kMaxImagePixels);
+
 // True if `path` exists (any kind of file): callers that may run where the images are not
 // (calib reading image sizes) ask before check_image_file.
 bool image_file_exists(const std::string& path);

@@ -3,8 +3,11 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <clocale>
+#include <cmath>
+#include <cstdlib>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
@@ -124,6 +127,37 @@ void rename_staged() {
 
 std::atomic<unsigned> g_temp_counter{0};
 
+// Temporary names handed to libraries that write by name (OutputFile::temp_path) and the
+// outputs' names as the user gave them: a library's error names the file it was given, and
+// run() puts the output's name in its place (a failed STEP write named ".part.step.tmp.41.0").
+std::mutex g_names_mutex;
+std::vector<std::pair<std::string, std::string>> g_temp_names;
+
+void remember_temp_name(const std::string& temp, const std::string& name) {
+  const std::lock_guard<std::mutex> lock(g_names_mutex);
+  g_temp_names.emplace_back(temp, name);
+}
+
+// A refusal's message as the one line run() prints: the outputs' names in place of temporary
+// names, and on one line (OpenCV's exceptions, for one, end in a newline and may hold several).
+std::string message_line(std::string message) {
+  {
+    const std::lock_guard<std::mutex> lock(g_names_mutex);
+    for (const auto& [temp, name] : g_temp_names) {
+      for (std::size_t at = 0; (at = message.find(temp, at)) != std::string::npos; at += name.size()) {
+        message.replace(at, temp.size(), name);
+      }
+    }
+  }
+  while (!message.empty() && std::isspace(static_cast<unsigned char>(message.back()))) message.pop_back();
+  for (std::size_t at = 0; (at = message.find_first_of("\r\n", at)) != std::string::npos;) {
+    const std::size_t end = message.find_first_not_of(" \t\r\n", at);
+    message.replace(at, end - at, "; ");
+    at += 2;
+  }
+  return message;
+}
+
 // The most bytes of one name in `dir` (NAME_MAX, 255 on Linux's file systems).
 std::size_t name_max(const std::filesystem::path& dir) {
   const long n = ::pathconf(dir.c_str(), _PC_NAME_MAX);
@@ -159,7 +193,51 @@ std::string follow_links(const std::string& path) {
   throw InputError(path, 0, "cannot write: Too many levels of symbolic links");
 }
 
+// Checks every option of `app` and its subcommands gets. Every floating-point option refuses NaN and the infinities (and
+// numbers beyond the double range, which convert to them) at parse time: CLI11 converts "nan" and
+// "inf" to a double, and its Range and PositiveNumber checks let a NaN through (every comparison
+// with it is false). The option's own check says what range it takes.
+void add_common_checks(CLI::App& app) {
+  const CLI::Validator finite(
+      [](std::string& value) -> std::string {
+        char* end = nullptr;
+        const double v = std::strtod(value.c_str(), &end);
+        if (end != value.c_str() && !std::isfinite(v)) return "Value " + value + " is not a finite number";
+        return "";
+      },
+      "");
+  // A blank positional argument (a file name: '' or spaces, as an empty make variable gives) is
+  // bad usage, not a file that cannot be opened (and '' is not stdin: that is '-').
+  const CLI::Validator not_blank(
+      [](std::string& value) -> std::string {
+        if (value.find_first_not_of(" \t\r\n") == std::string::npos) return "a blank name: give a file's name ('-' for stdin)";
+        return "";
+      },
+      "");
+  for (CLI::Option* option : app.get_options()) {
+    if (option->get_type_name().rfind("FLOAT", 0) == 0) option->check(finite);
+    if (option->get_positional()) option->check(not_blank);
+  }
+  for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) add_common_checks(*sub);
+}
+
 }  // namespace
+
+CLI::Validator Above(double min, double max) {
+  std::ostringstream d;
+  d << "FLOAT in (" << min << " - " << max << "]";
+  return CLI::Validator(
+      [min, max](std::string& value) -> std::string {
+        double v = 0;
+        if (!CLI::detail::lexical_cast(value, v) || !(v > min && v <= max)) {
+          std::ostringstream m;
+          m << "Value " << value << " not in range: more than " << min << ", at most " << max;
+          return m.str();
+        }
+        return "";
+      },
+      d.str());
+}
 
 int run(int argc, char** argv, const ToolSpec& spec,
         const std::function<void(CLI::App&)>& configure, const std::function<void()>& body) {
@@ -176,8 +254,14 @@ int run(int argc, char** argv, const ToolSpec& spec,
   bool verbose = false;
   app.add_flag("-q,--quiet", quiet, "Only errors on stderr");
   app.add_flag("-v,--verbose", verbose, "Progress and details on stderr");
+  // A refusal of the command line is one line, as every other refusal: "name: problem (see --help)"
+  // (CLI11's own adds "Run with --help for more information." on a second line).
+  app.failure_message([name = spec.name](const CLI::App*, const CLI::Error& e) {
+    return name + ": " + e.what() + " (see --help)\n";
+  });
   try {
     configure(app);
+    add_common_checks(app);
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);
@@ -192,6 +276,8 @@ int run(int argc, char** argv, const ToolSpec& spec,
     ~StagingOff() {
       g_staging = false;
       discard_staged();
+      const std::lock_guard<std::mutex> lock(g_names_mutex);
+      g_temp_names.clear();
     }
   } staging_off;
   try {
@@ -204,13 +290,13 @@ int run(int argc, char** argv, const ToolSpec& spec,
     rename_staged();
     return 0;
   } catch (const UsageError& e) {
-    std::cerr << spec.name << ": " << e.what() << "\n";
+    std::cerr << spec.name << ": " << message_line(e.what()) << "\n";
     return 2;
   } catch (const std::bad_alloc&) {
     std::cerr << spec.name << ": out of memory\n";
     return 1;
   } catch (const std::exception& e) {
-    std::cerr << spec.name << ": " << e.what() << "\n";
+    std::cerr << spec.name << ": " << message_line(e.what()) << "\n";
     return 1;
   }
 }
@@ -264,8 +350,18 @@ protected:
     do {
       n = ::read(fd_, buffer_.data(), buffer_.size());
     } while (n < 0 && errno == EINTR);
-    if (n < 0) throw InputError(source_, 0, std::string("read error: ") + std::strerror(errno));
+    if (n < 0) {
+      // The line the next byte was on, in a text file (a reader that counts lines names its own;
+      // one reading the whole file first, read_all, gets it here).
+      const std::size_t line = bytes_ > 0 && !binary_ ? lines_ + 1 : 0;
+      throw InputError(source_, line, std::string("read error: ") + std::strerror(errno));
+    }
     if (n == 0) return traits_type::eof();
+    bytes_ += static_cast<std::size_t>(n);
+    for (ssize_t i = 0; i < n; ++i) {
+      lines_ += buffer_[static_cast<std::size_t>(i)] == '\n' ? 1 : 0;
+      binary_ = binary_ || buffer_[static_cast<std::size_t>(i)] == '\0';
+    }
     setg(buffer_.data(), buffer_.data(), buffer_.data() + n);
     return traits_type::to_int_type(*gptr());
   }
@@ -274,6 +370,9 @@ private:
   int fd_;
   bool owned_;
   std::string source_;
+  std::size_t bytes_ = 0;  // read so far
+  std::size_t lines_ = 0;  // line ends among them
+  bool binary_ = false;    // a NUL byte among them: no lines to name
   std::array<char, 1 << 16> buffer_{};
 };
 
@@ -291,6 +390,81 @@ public:
 
 private:
   FileReadBuf buf_;
+};
+
+// A write buffer over a file descriptor whose write errors name the output: std::ofstream only
+// sets badbit (the body went on writing into a stream that had failed, and the error was found at
+// commit without its reason). The stream holding it has badbit in its exception mask, so the
+// InputError leaves the first stream operation whose write failed.
+class FileWriteBuf : public std::streambuf {
+public:
+  FileWriteBuf(int fd, std::string name) : fd_(fd), name_(std::move(name)) {
+    setp(buffer_.data(), buffer_.data() + buffer_.size());
+  }
+  ~FileWriteBuf() override {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  FileWriteBuf(const FileWriteBuf&) = delete;
+  FileWriteBuf& operator=(const FileWriteBuf&) = delete;
+
+  // Writes what is buffered and closes the file, throwing InputError unless all went well (close
+  // reports write-back errors: NFS, quotas).
+  void close_checked() {
+    if (fd_ < 0) return;
+    write_buffer();
+    const int fd = fd_;
+    fd_ = -1;
+    if (::close(fd) != 0) fail(errno);
+  }
+
+protected:
+  int_type overflow(int_type c) override {
+    write_buffer();
+    if (!traits_type::eq_int_type(c, traits_type::eof())) {
+      *pptr() = traits_type::to_char_type(c);
+      pbump(1);
+    }
+    return traits_type::not_eof(c);
+  }
+  int sync() override {
+    write_buffer();
+    return 0;
+  }
+
+private:
+  [[noreturn]] void fail(int error) const {
+    throw InputError(name_, 0, std::string("write failed: ") + std::strerror(error));
+  }
+  void write_buffer() {
+    const char* p = pbase();
+    while (p < pptr()) {
+      const ssize_t n = ::write(fd_, p, static_cast<std::size_t>(pptr() - p));
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0) {
+        const int error = errno;
+        setp(buffer_.data(), buffer_.data() + buffer_.size());  // the bytes are lost either way
+        fail(error);
+      }
+      p += n;
+    }
+    setp(buffer_.data(), buffer_.data() + buffer_.size());
+  }
+
+  int fd_;
+  std::string name_;
+  std::array<char, 1 << 16> buffer_{};
+};
+
+class FileOutput : public std::ostream {
+public:
+  FileOutput(int fd, const std::string& name) : std::ostream(nullptr), buf_(fd, name) {
+    rdbuf(&buf_);
+    exceptions(std::ios::badbit);
+  }
+  void close_checked() { buf_.close_checked(); }
+
+private:
+  FileWriteBuf buf_;
 };
 
 }  // namespace
@@ -343,6 +517,22 @@ bool copy_contents(const std::string& from, std::ostream& out) {
   return static_cast<bool>(out) && in.eof();
 }
 
+// Flushes and closes `out`, throwing InputError naming `name` and the system's reason unless
+// every byte was written: a write that fails in the flush (a full disk) or a write-back error
+// that close reports (NFS, a quota) alike.
+void close_checked(std::ofstream& out, const std::string& name) {
+  errno = 0;
+  out.flush();
+  int error = errno;
+  bool ok = static_cast<bool>(out);
+  out.close();
+  if (ok && !out) {
+    ok = false;
+    error = errno;
+  }
+  if (!ok) throw InputError(name, 0, std::string("write failed: ") + (error != 0 ? std::strerror(error) : "unknown error"));
+}
+
 }  // namespace
 
 OutputFile::OutputFile(std::string path) : path_(std::move(path)), to_stdout_(path_.empty() || path_ == "-") {
@@ -355,7 +545,7 @@ OutputFile::OutputFile(std::string path) : path_(std::move(path)), to_stdout_(pa
 
 OutputFile::~OutputFile() {
   if (!temp_.empty() && !committed_) {
-    if (file_) file_->close();
+    file_.reset();  // closes the file unchecked: it is removed
     std::remove(temp_.c_str());
     unregister_pending(temp_);
   }
@@ -376,6 +566,7 @@ const std::string& OutputFile::temp_path() {
     temp_ = make_temp_name(to_stdout_ || direct_ ? std::filesystem::temp_directory_path() / "photomill-out"
                                                  : std::filesystem::path(target_));
     register_pending(temp_);
+    remember_temp_name(temp_, to_stdout_ ? "<stdout>" : path_);
   }
   return temp_;
 }
@@ -384,10 +575,9 @@ std::ostream& OutputFile::stream() {
   if (to_stdout_) return std::cout;
   if (!file_) {
     const std::string& target = direct_ ? path_ : temp_path();
-    file_ = std::make_unique<std::ofstream>(target, std::ios::binary | std::ios::trunc);
-    if (!*file_) {
-      throw InputError(path_, 0, std::string("cannot write: ") + std::strerror(errno));
-    }
+    const int fd = ::open(target.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+    if (fd < 0) throw InputError(path_, 0, std::string("cannot write: ") + std::strerror(errno));
+    file_ = std::make_unique<FileOutput>(fd, path_);
   }
   return *file_;
 }
@@ -407,12 +597,7 @@ void OutputFile::commit() {
     return;
   }
   if (direct_) {
-    if (file_) {
-      file_->flush();
-      const bool ok = static_cast<bool>(*file_);
-      file_->close();
-      if (!ok) throw InputError(path_, 0, "write failed");
-    }
+    if (file_) static_cast<FileOutput&>(*file_).close_checked();
     if (!temp_.empty()) {  // a library wrote by name: copy it onto the device
       std::ofstream out(path_, std::ios::binary);
       bool copied = static_cast<bool>(out) && copy_contents(temp_, out);
@@ -426,13 +611,12 @@ void OutputFile::commit() {
     return;
   }
   if (file_) {
-    file_->flush();
-    const bool ok = static_cast<bool>(*file_);
-    file_->close();
-    if (!ok) throw InputError(path_, 0, "write failed (disk full?)");
+    static_cast<FileOutput&>(*file_).close_checked();
   } else if (!std::filesystem::exists(temp_path())) {
     // Nothing was written through stream() nor by name: create the (empty) file.
     std::ofstream touch(temp_, std::ios::binary);
+    if (!touch) throw InputError(path_, 0, std::string("cannot write: ") + std::strerror(errno));
+    close_checked(touch, path_);
   }
   {
     const std::lock_guard<std::mutex> lock(g_staged_mutex);

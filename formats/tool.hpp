@@ -23,13 +23,19 @@ struct ToolSpec {
 
 // Builds the CLI11 app (adds --version, -q, -v), lets `configure` add the tool's options, parses,
 // then runs `body`. Returns the exit code: 0 ok (and for --help/--version), 2 bad usage
-// (CLI11 parse errors, photomill::UsageError), 1 for any other exception, whose message is
-// printed as "name: message" on stderr. Outputs committed while `body` runs are renamed onto
+// (CLI11 parse errors, photomill::UsageError; NaN or an infinity given to any floating-point
+// option), 1 for any other exception, whose message is printed as "name: message" on stderr,
+// one line. Outputs committed while `body` runs are renamed onto
 // their targets only after it returned and stdout took every byte: a run that fails anywhere
 // leaves every previous output as it was. Installs handlers for the signals that end a process
 // (SIGHUP, SIGINT, SIGQUIT, SIGTERM, SIGPIPE, ...) that remove the temporary files first.
 int run(int argc, char** argv, const ToolSpec& spec,
         const std::function<void(CLI::App&)>& configure, const std::function<void()>& body);
+
+// A CLI11 check for a quantity that must be more than `min` and at most `max`: "FLOAT in (0 - 1000]"
+// in --help, as CLI::Range(min, max) shows [min - max]. (run() refuses NaN and the infinities of
+// every floating-point option, which CLI::Range lets through.)
+CLI::Validator Above(double min, double max);
 
 // A named preset: option values measured together (docs/measurements/makefile.md), each given
 // as the option's long name and what setting it does. `--preset NAME` applies the values of the
@@ -75,11 +81,14 @@ public:
   OutputFile(const OutputFile&) = delete;
   OutputFile& operator=(const OutputFile&) = delete;
 
+  // The output's stream. A write that fails (a full disk: ENOSPC, an I/O error) throws
+  // InputError naming the output and the system's reason at once, from the stream operation.
   std::ostream& stream();
   // A file path that a library writing by name (Open CASCADE) can write to. For stdout outputs a
   // temporary file whose contents commit() copies to stdout.
   const std::string& temp_path();
-  // Checks that every byte reached the temporary file (flush and close included) and renames it
+  // Checks that every byte reached the temporary file (flush and close included: a write-back
+  // error that close reports is a failed write) and renames it
   // onto the target; inside run() the rename waits for the end of the run.
   void commit();
   bool is_stdout() const { return to_stdout_; }
@@ -90,7 +99,7 @@ private:
   bool to_stdout_;
   std::string target_;  // path_ with symbolic links followed
   std::string temp_;
-  std::unique_ptr<std::ofstream> file_;
+  std::unique_ptr<std::ostream> file_;  // a FileOutput (tool.cpp): every failed write throws, naming path_
   bool committed_ = false;
   bool direct_ = false;  // write straight to a device or FIFO, no temporary
 };

@@ -157,6 +157,38 @@ TEST(Run, RenamesTheOutputsOnlyWhenTheWholeRunSucceeded) {
   EXPECT_EQ(count_files(dir.path()), 2u);
 }
 
+// What run() prints for a refusal: one line (an OpenCV exception's message has several and ends
+// in a newline), with the output's name where a library named its temporary file.
+TEST(Run, ARefusalIsOneLineNamingTheOutputNotItsTemporary) {
+  test::TempDir dir;
+  const auto target = dir.path() / "part.step";
+  ::testing::internal::CaptureStderr();
+  EXPECT_EQ(run_body([] { throw std::runtime_error("OpenCV(4.6.0) x.cpp:1: error: (-215) in function 'f'\n\n"); }), 1);
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "tool_test: OpenCV(4.6.0) x.cpp:1: error: (-215) in function 'f'\n");
+  ::testing::internal::CaptureStderr();
+  EXPECT_EQ(run_body([] { throw std::runtime_error("first\n  second"); }), 1);
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "tool_test: first; second\n");
+  ::testing::internal::CaptureStderr();
+  EXPECT_EQ(run_body([&] {
+              OutputFile out(target.string());
+              throw InputError(out.temp_path(), 0, "write failed");
+            }),
+            1);
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "tool_test: " + target.string() + ": write failed\n");
+}
+
+// A write that fails throws from the stream operation, naming the output and the reason.
+TEST(OutputFile, AFailedWriteThrowsNamingTheOutputAndTheReason) {
+  if (!std::filesystem::is_character_file("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  OutputFile out("/dev/full");
+  try {
+    out.stream() << std::string(1 << 17, 'x');
+    FAIL() << "wrote 128 KiB to /dev/full";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), "/dev/full: write failed: No space left on device");
+  }
+}
+
 TEST(OutputFile, ANameAsLongAsTheSystemAllowsCanBeWritten) {
   test::TempDir dir;
   const auto target = dir.path() / (std::string(250, 'n') + ".csv");  // 254 bytes, NAME_MAX is 255

@@ -11,6 +11,7 @@
 #include "formats/camera_bounds.hpp"
 #include "formats/error.hpp"
 #include "formats/image.hpp"
+#include "formats/image_decode.hpp"
 #include "formats/log.hpp"
 #include "formats/tool.hpp"
 
@@ -179,9 +180,7 @@ MatchInputs read_inputs(Cli& c) {
         throw InputError(path, 0, "image named in a features file not found (--refine lsm reads the photos: run match "
                                   "where detect ran, give --image-dir, or use --refine none)");
       }
-      check_image_file(path);
-      const cv::Mat grey = cv::imread(path, cv::IMREAD_GRAYSCALE);
-      if (grey.empty()) throw InputError(path, 0, "not a readable image");
+      const cv::Mat grey = read_image(path, cv::IMREAD_GRAYSCALE);
       grey.convertTo(in.grey_images[k], CV_32F);
     }
   }

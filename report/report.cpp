@@ -228,14 +228,13 @@ Reports read_reports(const fs::path& root, std::vector<const KnownFile*>& missin
   return reports;
 }
 
-// The pictures: complete PNG or JPEG files (check_image_file), embedded as they are.
+// The pictures: complete PNG or JPEG files (read_image_file), embedded as they are.
 struct Picture {
   std::string path, what, mime, data;
 };
 
 Picture load_picture(const fs::path& p, const std::string& rel, const std::string& what) {
-  check_image_file(p.string());
-  std::string bytes = tool::read_all(p.string(), kMaxImageBytes);
+  std::string bytes = read_image_file(p.string());
   const bool png = bytes.size() >= 8 && bytes.compare(1, 3, "PNG") == 0;
   const bool jpeg = bytes.size() >= 3 && bytes.compare(0, 3, "\xFF\xD8\xFF") == 0;
   if (!png && !jpeg) throw InputError(p.string(), 0, "not a PNG or JPEG picture");

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "tests/temp_dir.hpp"
@@ -34,9 +35,13 @@ inline std::string read_file(const std::filesystem::path& p) {
   return s.str();
 }
 
-// Runs `tool` (a name in the build's bin/ folder, or a path) in `cwd` (default: a fresh temp dir).
+// Environment variables set in the child only (name, value), e.g. LD_PRELOAD.
+using Environment = std::vector<std::pair<std::string, std::string>>;
+
+// Runs `tool` (a name in the build's bin/ folder, or a path) in `cwd` (default: a fresh temp dir),
+// with `env` added to the environment.
 inline ToolResult run_tool(const std::string& tool, const std::vector<std::string>& args, const std::string& stdin_text = "",
-                           const std::filesystem::path& cwd = {}) {
+                           const std::filesystem::path& cwd = {}, const Environment& env = {}) {
   TempDir io;
   const auto in_path = io.path() / "stdin";
   const auto out_path = io.path() / "stdout";
@@ -54,8 +59,10 @@ inline ToolResult run_tool(const std::string& tool, const std::vector<std::strin
     ::dup2(out, 1);
     ::dup2(err, 2);
     if (!cwd.empty() && ::chdir(cwd.c_str()) != 0) ::_exit(126);
-    // One run id for every run of a test (formats/run.hpp): two runs on the same input then write
-    // the same bytes, which the tests of determinism and of options without effect compare.
+    for (const auto& [name, value] : env) ::setenv(name.c_str(), value.c_str(), 1);
+    // One run id for every run of a test (formats/run.hpp) unless `env` gives one: two runs on the
+    // same input then write the same bytes, which the tests of determinism and of options without
+    // effect compare.
     ::setenv("PHOTOMILL_RUN_ID", "test", 0);
     std::vector<char*> argv;
     for (auto& a : argv_s) argv.push_back(a.data());
