@@ -10,6 +10,7 @@
 #include "geometry/board.hpp"
 #include "formats/error.hpp"
 #include "formats/text.hpp"
+#include "formats/option_checks.hpp"
 #include "formats/tool.hpp"
 
 namespace photomill::calib {
@@ -28,7 +29,7 @@ void add_options(CLI::App& app, CalibCli& c) {
   ctl->excludes(cb)->excludes(ch);
   cb->excludes(ch);
   app.add_option("--square-mm", c.square_mm, "Board square side, mm (sets the unit of the poses only)")
-      ->group(g_in)->capture_default_str()->check(tool::Above(0.0, 10000.0));
+      ->group(g_in)->capture_default_str()->check(tool::positive_up_to(10000.0));
   app.add_option("--image-size", c.image_size, "WxH in px (default: read from the images the observations name)");
 
   const std::string g_m = "Method";
@@ -51,7 +52,7 @@ void add_options(CLI::App& app, CalibCli& c) {
   app.add_option("--simplex-max-evaluations", o.simplex.simplex.max_evaluations, "Simplex: cost evaluations at most")
       ->group(g_m)->capture_default_str()->check(CLI::Range(1, 100'000'000));
   app.add_option("--simplex-ftol", o.simplex.simplex.ftol, "Simplex: relative spread of the vertex costs that ends a run")
-      ->group(g_m)->capture_default_str()->check(tool::Above(0.0, 1.0));
+      ->group(g_m)->capture_default_str()->check(tool::positive_up_to(1.0));
 
   const std::string g_q = "Quality";
   app.add_option("--reject-factor", o.reject_factor,

@@ -40,9 +40,9 @@ int main(int argc, char** argv) {
         auto* ch = app.add_option("--charuco", charuco, "ChArUco board with COLSxROWS squares (5x7)")->group("Boards");
         cb->excludes(ch);
         app.add_option("--square-mm", spec.square_mm, "Side of a board square, mm (control points; ChArUco)")
-            ->group("Boards")->capture_default_str()->check(tool::Above(0.0, 10000.0));
+            ->group("Boards")->capture_default_str()->check(tool::positive_up_to(10000.0));
         app.add_option("--marker-mm", spec.marker_mm, "Side of a marker, mm (ChArUco; with --scale-bars-out)")
-            ->group("Boards")->check(tool::Above(0.0, 10000.0));
+            ->group("Boards")->check(tool::positive_up_to(10000.0));
         detect::add_photo_options(app, photo);
         app.add_option("--dict", spec.dictionary, "ChArUco: ArUco dictionary")
             ->group("Boards")->capture_default_str()

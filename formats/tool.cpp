@@ -223,22 +223,6 @@ void add_common_checks(CLI::App& app) {
 
 }  // namespace
 
-CLI::Validator Above(double min, double max) {
-  std::ostringstream d;
-  d << "FLOAT in (" << min << " - " << max << "]";
-  return CLI::Validator(
-      [min, max](std::string& value) -> std::string {
-        double v = 0;
-        if (!CLI::detail::lexical_cast(value, v) || !(v > min && v <= max)) {
-          std::ostringstream m;
-          m << "Value " << value << " not in range: more than " << min << ", at most " << max;
-          return m.str();
-        }
-        return "";
-      },
-      d.str());
-}
-
 int run(int argc, char** argv, const ToolSpec& spec,
         const std::function<void(CLI::App&)>& configure, const std::function<void()>& body) {
   std::setlocale(LC_ALL, "C");

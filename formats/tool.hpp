@@ -32,11 +32,6 @@ struct ToolSpec {
 int run(int argc, char** argv, const ToolSpec& spec,
         const std::function<void(CLI::App&)>& configure, const std::function<void()>& body);
 
-// A CLI11 check for a quantity that must be more than `min` and at most `max`: "FLOAT in (0 - 1000]"
-// in --help, as CLI::Range(min, max) shows [min - max]. (run() refuses NaN and the infinities of
-// every floating-point option, which CLI::Range lets through.)
-CLI::Validator Above(double min, double max);
-
 // A named preset: option values measured together (docs/measurements/makefile.md), each given
 // as the option's long name and what setting it does. `--preset NAME` applies the values of the
 // options the command line does not give: an option given explicitly wins, in any order.

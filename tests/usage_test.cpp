@@ -72,7 +72,7 @@ TEST_P(NumericOptions, ShowTheirRangeAndRefuseNanAndAbsurdValues) {
   // Options of the main command that a subcommand's help repeats are tested there.
   for (const auto& [name, rest] : options) {
     if (name == "--help" || name == "--version") continue;
-    // " in [a - b]" (tool::Above, CLI::Range) or ":in (a, b]" (formats/option_checks.hpp).
+    // " in [a - b]" (CLI::Range) or ":in (a, b]" (formats/option_checks.hpp).
     EXPECT_TRUE(rest.find("in [") != std::string::npos || rest.find("in (") != std::string::npos)
         << h.binary << " " << name << " shows no range in --help: " << rest;
     // Integer options refuse 1e300 by its conversion; floating-point ones by their range (the

@@ -102,7 +102,7 @@ INSTANTIATE_TEST_SUITE_P(
                 "clpost: --safe-z-mm: Value nan is not a finite number (see --help)\n"},
         CliCase{"clpost_zero_spindle", "clpost", {"--spindle-rpm", "0"},
                 "UNITS/MM\nRAPID\nGOTO/0,0,20\nFEDRAT/MMPM,800\nGOTO/0,0,5\nEND\nFINI\n", 2, "",
-                "clpost: --spindle-rpm: Value 0 not in range: more than 0, at most 1e+06 (see --help)\n"},
+                "clpost: --spindle-rpm: '0' is not in (0, 1e6] (see --help)\n"},
         CliCase{"clpost_no_spindle_speed_warns", "clpost", {},
                 "UNITS/MM\nRAPID\nGOTO/0,0,20\nFEDRAT/MMPM,800\nGOTO/0,0,5\nEND\nFINI\n", 0,
                 "(photomill clpost: photomill)\nG21 G90 G94 G17\nG0 Z20\nG0 X0 Y0 Z20\nG1 Z5 F800\n",

@@ -6,6 +6,7 @@
 
 #include "formats/cl_data.hpp"
 #include "formats/log.hpp"
+#include "formats/option_checks.hpp"
 #include "formats/tool.hpp"
 #include "toolpath/gcode.hpp"
 
@@ -72,7 +73,7 @@ int main(int argc, char** argv) {
         app.add_option("--safe-z-mm", o.safe_z_mm, "Tool-tip height of the rapid plane at start, end and tool changes, in the CL data's frame (default: highest Z in the CL data)")
             ->check(CLI::Range(-100'000.0, 100'000.0));
         app.add_option("--spindle-rpm", o.spindle_rpm, "Spindle speed for every tool (default: each CL file's SPINDL)")
-            ->check(tool::Above(0.0, 1e6));
+            ->check(tool::positive_up_to(1e6));
         app.add_flag("--no-spindle", no_spindle, "Write no S, M3 or M5 words");
         app.add_option("--coolant", coolant, "M8/M9: as the CL data says, always, or never")
             ->check(CLI::IsMember({"auto", "on", "off"}))->capture_default_str();
@@ -87,16 +88,16 @@ int main(int argc, char** argv) {
         app.add_option("--stock-box-mm", stock, "Stock block XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX in the CL data's frame (needed by --origin top-*)")
             ->check(number_list(6, 6, -1e15, 1e15));
         app.add_option("--blend-tol-mm", o.blend_tol_mm, "LinuxCNC G64 P: path blending tolerance (linuxcnc only; default 0.005)")
-            ->check(tool::Above(0.0, 100.0));
+            ->check(tool::positive_up_to(100.0));
         app.add_option("--program-number", o.program_number, "Fanuc O number, 1..7999")->check(CLI::Range(1, 7999))->capture_default_str();
         app.add_option("--tool-numbers", tool_numbers, "Tool number of each CL file, e.g. 1,4 (default 1, 2, ...)")
             ->check(number_list(1, 1000, 1, 9999));
         app.add_option("--rapid-mm-per-min", o.rapid_mm_per_min, "Rapid rate for the estimated cycle time")
-            ->check(tool::Above(0.0, 1e6))->capture_default_str();
+            ->check(tool::positive_up_to(1e6))->capture_default_str();
         app.add_option("--tool-change-s", o.tool_change_s, "Seconds per tool change or pause, for the estimated cycle time")
             ->check(CLI::Range(0.0, 1e5))->capture_default_str();
         app.add_option("--arc-tol-mm", o.arc_tol_mm, "Fit G2/G3 arcs in XY to runs of G1 moves within this distance (default: off)")
-            ->check(tool::Above(0.0, 100.0));
+            ->check(tool::positive_up_to(100.0));
       },
       [&] {
         o.spindle = !no_spindle;
