@@ -895,6 +895,7 @@ void Pipeline::finish(Reconstruction& r) {
   co.threads = o_.threads;
   const PointUncertainty u = point_uncertainty(scene_, setup_, o_.bundle, co);
   r.sigma_mm = u.sigma_mm;
+  r.covariance_mm2 = u.covariance_mm2;
   rep.sigma_method = to_string(u.method);
   rep.variance_factor = u.variance_factor;
   rep.loss = to_string(o_.bundle.loss);

@@ -128,6 +128,7 @@ struct Reconstruction {
   Scene scene;                     // final poses, points, inlier flags
   Camera camera;                   // as given, or refined by self-calibration
   std::vector<double> sigma_mm;    // per track (see covariance.hpp); NaN outside the result
+  std::vector<Eigen::Matrix3d> covariance_mm2;  // per track (see covariance.hpp); NaN outside the adjustment
   std::vector<char> in_result;     // per track: part of the output cloud
   BundleSetup setup;               // datum, gauge and sigmas of the final adjustment
   Report report;
