@@ -853,7 +853,7 @@ void Pipeline::check_two_view(Reconstruction& r, const std::vector<std::size_t>&
         std::to_string(tr.removed.size()) + " of " + std::to_string(c.checked) + " two-view points removed (" +
         std::to_string(c.unsupported) + " with no point seen in three views within " + fmt(o.reach * c.spacing_mm) +
         " mm (--two-view-reach), " + std::to_string(c.off_neighbours) +
-        " off their neighbours' plane by more than --two-view-sigmas " + fmt(o.sigmas) + " sigma and --two-view-tolerance-mm " +
+        " off their neighbours' surface by more than --two-view-sigmas " + fmt(o.sigmas) + " sigma and --two-view-tolerance-mm " +
         fmt(o.tolerance_mm) + "); --no-two-view-check keeps them");
   }
 }

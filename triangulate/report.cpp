@@ -223,7 +223,7 @@ void log_report(const Report& r) {
     log::debug("two-view point removed: track " + std::to_string(p.track_id) + " at (" + fmt(p.xyz_mm[0]) + ", " +
                fmt(p.xyz_mm[1]) + ", " + fmt(p.xyz_mm[2]) + ") " +
                (p.reason == "unsupported" ? std::string("has no neighbour seen in three views")
-                                          : fmt(p.distance_mm) + " mm off its neighbours' plane (allowed " + fmt(p.allowed_mm) + " mm)"));
+                                          : fmt(p.distance_mm) + " mm off its neighbours' surface (allowed " + fmt(p.allowed_mm) + " mm)"));
   }
 }
 

@@ -8,6 +8,7 @@
 #include <unordered_map>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 
 #include "geometry/parallel.hpp"
 
@@ -86,6 +87,9 @@ private:
   std::unordered_map<std::uint64_t, std::vector<std::size_t>> cells_;
 };
 
+// Fewer neighbours than this are judged by their plane, more by their quadric.
+constexpr std::size_t kQuadricMinNeighbours = 10;
+
 double median_of(std::vector<double> v) {
   if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
   const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
@@ -157,14 +161,43 @@ TwoViewCheck check_two_view_points(const std::vector<CheckedPoint>& points, cons
       for (std::size_t j : near) scatter += (refs[j] - centroid) * (refs[j] - centroid).transpose();
       const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
       const Eigen::Vector3d n = eig.eigenvectors().col(0);  // smallest eigenvalue first
+      const Eigen::Vector3d e1 = eig.eigenvectors().col(2), e2 = eig.eigenvectors().col(1);
+      // Heights w over the plane, fitted by the quadric w = a + b u + c v + d u^2 + e uv + f v^2
+      // (the local jet of the surface: Cazals & Pouget 2005) when there are enough neighbours,
+      // else by the plane (w = 0): a curved surface's sagitta over the neighbourhood is not taken
+      // for an offset.
+      const auto kk = static_cast<Eigen::Index>(near.size());
+      const bool quadric = near.size() >= kQuadricMinNeighbours;
+      const Eigen::Index terms = quadric ? 6 : 1;
+      Eigen::MatrixXd A(kk, terms);
+      Eigen::VectorXd w(kk);
+      const auto row = [&](const Eigen::Vector3d& x, Eigen::Index r, Eigen::MatrixXd& M) {
+        const Eigen::Vector3d q = x - centroid;
+        const double u = e1.dot(q), v = e2.dot(q);
+        M(r, 0) = 1;
+        if (quadric) M.block(r, 1, 1, 5) << u, v, u * u, u * v, v * v;
+      };
+      for (Eigen::Index j = 0; j < kk; ++j) {
+        row(refs[near[static_cast<std::size_t>(j)]], j, A);
+        w[j] = n.dot(refs[near[static_cast<std::size_t>(j)]] - centroid);
+      }
+      const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(A);
+      Eigen::VectorXd coef = Eigen::VectorXd::Zero(terms);
+      if (qr.rank() == terms) coef = qr.solve(w);  // else the plane (neighbours on a line)
       std::vector<double> r(near.size());
-      for (std::size_t j = 0; j < near.size(); ++j) r[j] = n.dot(refs[near[j]] - centroid);
+      for (Eigen::Index j = 0; j < kk; ++j) r[static_cast<std::size_t>(j)] = w[j] - A.row(j).dot(coef);
       const double m = median_of(r);
       for (double& x : r) x = std::abs(x - m);
-      const double s = 1.4826 * median_of(r);
+      // Robust standard deviation of the residuals, corrected for the terms fitted, and the
+      // prediction's own variance at P taken as the mean leverage terms / k of it.
+      const double dof = static_cast<double>(kk) / static_cast<double>(kk - terms);
+      const double s = 1.4826 * median_of(r) * std::sqrt(dof);
+      const double s_pred2 = s * s * (1 + static_cast<double>(terms) / static_cast<double>(kk));
+      Eigen::MatrixXd at(1, terms);
+      row(p.xyz_mm, 0, at);
       const double along = std::max(0.0, n.dot(p.covariance_mm2 * n));
-      const double d = std::abs(n.dot(p.xyz_mm - centroid));
-      const double allowed = std::max(o.tolerance_mm, o.sigmas * std::sqrt(s * s + along));
+      const double d = std::abs(n.dot(p.xyz_mm - centroid) - at.row(0).dot(coef));
+      const double allowed = std::max(o.tolerance_mm, o.sigmas * std::sqrt(s_pred2 + along));
       out.distance_mm[i] = d;
       out.allowed_mm[i] = allowed;
       out.verdict[i] = d <= allowed ? TwoViewVerdict::Kept : TwoViewVerdict::OffNeighbours;

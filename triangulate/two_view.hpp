@@ -10,14 +10,18 @@
 //      its k-th nearest other reference point (k = `neighbours`).
 //   2. A two-view point P whose k-th nearest reference point is farther than `reach` x D is
 //      unsupported (nothing seen three times is near it): removed.
-//   3. Otherwise its k nearest reference points give a plane (total least squares: the centroid
-//      c and the normal n, the eigenvector of their scatter matrix with the smallest eigenvalue;
-//      Pearson 1901, e.g. Hoppe et al. 1992 for point-cloud normals), their spread about it
-//      s = 1.4826 MAD of n.(X_i - c) (robust standard deviation, Hampel 1974), and P's distance
-//      to it d = n.(P - c), whose standard deviation is sqrt(s^2 + n^T Sigma_P n) (Sigma_P the
-//      point's covariance from the adjustment, along the normal). P agrees with its neighbours
-//      when
-//        |d| <= max(tolerance_mm, sigmas x sqrt(s^2 + n^T Sigma_P n))
+//   3. Otherwise its k nearest reference points give the local surface: their plane (total least
+//      squares: the centroid c and the normal n, the eigenvector of their scatter matrix with the
+//      smallest eigenvalue; Pearson 1901, Hoppe et al. 1992 for point-cloud normals) and, with 10
+//      or more of them, the quadric of their heights over it, w = a + b u + c v + d u^2 + e uv +
+//      f v^2 (least squares; the local jet of the surface, Cazals & Pouget 2005), so that a curved
+//      surface's sagitta is not taken for an offset. Their spread about it is
+//      s = 1.4826 MAD(residuals) sqrt(k / (k - m)) (robust standard deviation, Hampel 1974,
+//      corrected for the m terms fitted), the prediction at P has variance s^2 (1 + m / k) (the
+//      mean leverage), and P's offset d = n.(P - c) - w(u_P, v_P) has the standard deviation
+//      sqrt(s^2 (1 + m / k) + n^T Sigma_P n) (Sigma_P the point's covariance from the
+//      adjustment, along the normal). P agrees with its neighbours when
+//        |d| <= max(tolerance_mm, sigmas x sqrt(s^2 (1 + m / k) + n^T Sigma_P n))
 //      (a k-sigma test as in data snooping, Baarda 1968), and is removed otherwise.
 // Points with a third view are kept; so are all points when fewer than k + 1 points other than
 // control points have a third view (e.g. two photos only: then nothing can check them; control
@@ -35,10 +39,10 @@ namespace photomill::triangulate {
 struct TwoViewOptions {
   bool enabled = true;
   std::size_t min_views = 3;      // points with this many views or more are the references
-  std::size_t neighbours = 12;    // k: reference points whose plane judges a two-view point
+  std::size_t neighbours = 16;    // k: reference points whose local surface judges a two-view point
   double reach = 4;               // unsupported beyond this many typical spacings (k-th neighbour)
   double sigmas = 5;              // the test's k-sigma factor
-  double tolerance_mm = 0.1;      // |d| up to this always agrees (model error of the plane)
+  double tolerance_mm = 0.1;      // |d| up to this always agrees (model error of the local surface)
   int threads = 0;
 };
 
@@ -59,7 +63,7 @@ struct TwoViewCheck {
   double spacing_mm = 0;               // D
   std::size_t checked = 0;             // two-view points judged
   std::size_t unsupported = 0;         // removed: no reference point near
-  std::size_t off_neighbours = 0;      // removed: off their neighbours' plane
+  std::size_t off_neighbours = 0;      // removed: off their neighbours' surface
   std::vector<TwoViewVerdict> verdict; // per point
   std::vector<double> distance_mm;     // per checked point: |d| (NaN when unsupported or not checked)
   std::vector<double> allowed_mm;      // per checked point: the bound on |d|

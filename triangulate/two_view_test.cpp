@@ -57,8 +57,8 @@ TEST(TwoViewCheck, KeepsPointsOnTheSurfaceAndRemovesPointsOffIt) {
   ASSERT_TRUE(c.ran);
   EXPECT_EQ(c.reference_points, on);
   EXPECT_EQ(c.checked, 4u);
-  // 12 neighbours on a 1 mm grid: the 12th is about 2 mm away.
-  EXPECT_NEAR(c.spacing_mm, 2.0, 0.3);
+  // 16 neighbours on a 1 mm grid: the 16th is sqrt(5) mm away.
+  EXPECT_NEAR(c.spacing_mm, std::sqrt(5.0), 0.01);
   EXPECT_EQ(c.verdict[on], TwoViewVerdict::Kept) << c.distance_mm[on] << " allowed " << c.allowed_mm[on];
   EXPECT_EQ(c.verdict[above], TwoViewVerdict::OffNeighbours);
   EXPECT_NEAR(c.distance_mm[above], 1.5, 0.05);
@@ -82,6 +82,32 @@ TEST(TwoViewCheck, APointsOwnSigmaAlongTheNormalWidensItsBound) {
   const TwoViewCheck c = check_two_view_points(pts, {});
   EXPECT_EQ(c.verdict[pts.size() - 2], TwoViewVerdict::Kept);
   EXPECT_EQ(c.verdict[pts.size() - 1], TwoViewVerdict::OffNeighbours);
+}
+
+TEST(TwoViewCheck, ACurvedSurfaceIsNotTakenForAnOffset) {
+  // A bump of 20 mm radius of curvature at its top, sampled every 2 mm: over the neighbourhood
+  // (about 5 mm) its sagitta is 0.6 mm, far beyond the noise; points on it agree, a point 0.5 mm
+  // above it does not.
+  std::vector<CheckedPoint> pts;
+  const auto z = [](double x, double y) { return 10 - (x * x + y * y) / 40; };
+  for (double x = -16; x <= 16; x += 2) {
+    for (double y = -16; y <= 16; y += 2) {
+      CheckedPoint p;
+      p.xyz_mm = {x, y, z(x, y)};
+      p.views = 4;
+      p.covariance_mm2 = 1e-4 * Eigen::Matrix3d::Identity();
+      pts.push_back(p);
+    }
+  }
+  const std::size_t first = pts.size();
+  for (const auto& [x, y] : {std::pair{1.0, 1.0}, std::pair{-5.0, 7.0}, std::pair{9.0, -3.0}}) pts.push_back(two_view_at({x, y, z(x, y)}));
+  pts.push_back(two_view_at({3, -3, z(3, -3) + 0.5}));
+  const TwoViewCheck c = check_two_view_points(pts, {});
+  for (std::size_t i = first; i < first + 3; ++i) {
+    EXPECT_EQ(c.verdict[i], TwoViewVerdict::Kept) << i - first << ": " << c.distance_mm[i] << " allowed " << c.allowed_mm[i];
+  }
+  EXPECT_EQ(c.verdict.back(), TwoViewVerdict::OffNeighbours) << c.distance_mm.back() << " allowed " << c.allowed_mm.back();
+  EXPECT_NEAR(c.distance_mm.back(), 0.5, 0.05);
 }
 
 TEST(TwoViewCheck, OptionsGovernTheBounds) {
