@@ -3,6 +3,7 @@
 // reproduction, solvers and threads, knot placement, and degenerate input.
 #include "fitsurf/fit.hpp"
 
+#include <cmath>
 #include <string>
 #include <tuple>
 
@@ -234,6 +235,39 @@ TEST_F(FitsurfFit, WeightBySigmaFollowsThePreciseHalf) {
   alone.weight_by_sigma = false;
   const auto precise = truth(fit_point_cloud(cloud_of(test::sample(shape, 10000, 0.005, 51)), alone).fit.surface, shape);
   EXPECT_LT(weighted.rms_mm, 1.3 * precise.rms_mm) << "weighted " << weighted.rms_mm << ", precise half alone " << precise.rms_mm;
+}
+
+// Issue 24: a few points off the surface that say they are uncertain (triangulate's sigma_mm is
+// the largest axis of the point's covariance: a two-view point's depth along its rays) do not
+// pull the fit with --weight-by-sigma even without the robust step; the same points claiming the
+// precision of the others do, and then only the robust step (the default) keeps them out.
+TEST_F(FitsurfFit, WeightBySigmaLetsUncertainPointsGo) {
+  const test::Shape shape = test::shape("dome");
+  auto pts = test::sample(shape, 3000, 0.01, 61);
+  // A patch of 8 points 0.6 mm above the surface, about (10, 5).
+  for (int k = 0; k < 8; ++k) {
+    const double x = 10 + 0.8 * std::cos(k * 0.785), y = 5 + 0.8 * std::sin(k * 0.785);
+    pts.push_back({x, y, shape.f(x, y) + 0.6});
+  }
+  auto run = [&](double patch_sigma_mm, RobustLoss robust) {
+    PointCloud cloud = cloud_of(pts);
+    PointProperty& sigma = cloud.add_property("sigma_mm", PlyScalar::Float64);
+    for (std::size_t k = 0; k < pts.size(); ++k) sigma.values[k] = k < 3000 ? 0.01 : patch_sigma_mm;
+    Options o;
+    o.fit.poles_u = o.fit.poles_v = 20;
+    o.weight_by_sigma = true;
+    o.fit.robust = robust;
+    const Result r = fit_point_cloud(cloud, o);
+    double pull = 0;  // how far the surface came up to the patch: 0.6 - its mean residual
+    for (std::size_t i = 0; i < r.selection.kept.size(); ++i) {
+      if (r.selection.kept[i] >= 3000) pull += (0.6 - r.fit.residual_mm[i]) / 8;
+    }
+    return pull;
+  };
+  const double precise = run(0.01, RobustLoss::None), uncertain = run(0.2, RobustLoss::None);
+  EXPECT_LT(uncertain, 0.02) << "the patch claiming 0.2 mm moved the surface by " << uncertain << " mm";
+  EXPECT_GT(precise, 3 * uncertain) << "precise " << precise << ", uncertain " << uncertain;
+  EXPECT_LT(run(0.01, RobustLoss::Reject), 0.02) << "rejected by the robust step";
 }
 
 TEST_F(FitsurfFit, WeightBySigmaNeedsAValidSigmaPerPoint) {

@@ -144,6 +144,23 @@ void add_options(CLI::App& app, Cli& c) {
       ->check(tool::non_negative_up_to(180))->capture_default_str()->group(geo);
   app.add_option("--max-reproj-px", o.triangulation.max_reproj_px, "Largest reprojection error when triangulating")
       ->check(tool::positive_up_to(1e4))->capture_default_str()->group(geo);
+  const std::string two = "Two-view points (checked against their neighbours seen in three views)";
+  app.add_flag("!--no-two-view-check", o.two_view.enabled,
+               "Keep every two-view point [default: a point seen in two photos only is kept where it agrees with its "
+               "neighbours seen in three or more]")
+      ->group(two);
+  app.add_option("--two-view-neighbours", o.two_view.neighbours, "Points seen in three views whose local surface (plane, and quadric from 10 on) judges a two-view point")
+      ->check(CLI::Range(3, 1000))->capture_default_str()->group(two);
+  app.add_option("--two-view-reach", o.two_view.reach,
+                 "A two-view point is removed when those neighbours are farther than this many times their typical "
+                 "spacing (the median distance of a point seen in three views to its neighbours')")
+      ->check(tool::positive_up_to(1e6))->capture_default_str()->group(two);
+  app.add_option("--two-view-sigmas", o.two_view.sigmas,
+                 "... or when it lies off their surface by more than this many standard deviations (their spread and "
+                 "its own sigma along the surface's normal) ...")
+      ->check(tool::positive_up_to(1e6))->capture_default_str()->group(two);
+  app.add_option("--two-view-tolerance-mm", o.two_view.tolerance_mm, "... and by more than this")
+      ->check(tool::non_negative_up_to(1e6))->capture_default_str()->group(two);
   app.add_option("--ransac-threshold-px", o.ransac.threshold_px, "RANSAC inlier threshold (PnP, essential matrix)")
       ->check(tool::positive_up_to(1e4))->capture_default_str()->group(geo);
   app.add_option("--ransac-confidence", o.ransac.confidence, "RANSAC confidence")

@@ -7,6 +7,7 @@
 #include <ceres/jet.h>
 #include <Eigen/Cholesky>
 #include <Eigen/Dense>
+#include <Eigen/Eigenvalues>
 
 #include "geometry/parallel.hpp"
 #include "triangulate/residuals.hpp"
@@ -330,6 +331,14 @@ Eigen::Matrix3d point_covariance(const Problem& pr, std::size_t t, CovarianceMet
 
 }  // namespace
 
+double largest_axis_sigma_mm(const Eigen::Matrix3d& covariance_mm2) {
+  if (!covariance_mm2.allFinite()) return std::numeric_limits<double>::quiet_NaN();
+  // Symmetrised first: the Schur-complement sum is symmetric only to rounding.
+  const Eigen::Matrix3d c = 0.5 * (covariance_mm2 + covariance_mm2.transpose());
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(c, Eigen::EigenvaluesOnly);
+  return std::sqrt(std::max(0.0, eig.eigenvalues().maxCoeff()));
+}
+
 const char* to_string(CovarianceMethod method) {
   return method == CovarianceMethod::Full ? "full_covariance" : "per_point_fixed_poses";
 }
@@ -341,6 +350,8 @@ PointUncertainty point_uncertainty(const Scene& scene, const BundleSetup& setup,
   const Problem pr{scene, setup, layout, cols, bundle.refine_intrinsics != IntrinsicsRefinement::None};
   PointUncertainty out;
   out.sigma_mm.assign(scene.tracks.size(), std::numeric_limits<double>::quiet_NaN());
+  out.covariance_mm2.assign(scene.tracks.size(),
+                            Eigen::Matrix3d::Constant(std::numeric_limits<double>::quiet_NaN()));
   out.method = static_cast<std::size_t>(cols.f) <= options.max_reduced_parameters ? CovarianceMethod::Full
                                                                                    : CovarianceMethod::PerPoint;
   const bool full = out.method == CovarianceMethod::Full;
@@ -377,10 +388,11 @@ PointUncertainty point_uncertainty(const Scene& scene, const BundleSetup& setup,
       if (!layout.in_ba[t]) continue;
       if (!cols.variable[t]) {
         out.sigma_mm[t] = 0;  // a fixed control point
+        out.covariance_mm2[t].setZero();
         continue;
       }
-      const Eigen::Matrix3d cov = point_covariance(pr, t, out.method, sigma_f, sys.Vinv[t]);
-      out.sigma_mm[t] = std::sqrt(std::max(0.0, s0 * cov.trace() / 3));
+      out.covariance_mm2[t] = s0 * point_covariance(pr, t, out.method, sigma_f, sys.Vinv[t]);
+      out.sigma_mm[t] = largest_axis_sigma_mm(out.covariance_mm2[t]);
     }
   });
   return out;

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "triangulate/bundle.hpp"
 #include "triangulate/scene.hpp"
 
@@ -29,8 +31,12 @@ struct PointUncertainty {
   // (1 when there is no redundancy, then the a-priori sigmas are taken as they are).
   double variance_factor = 1;
   std::size_t redundancy = 0;               // m - n
-  // Per track: sqrt(trace(Sigma_X) / 3), the RMS standard deviation per axis in mm; NaN for
-  // tracks outside the adjustment, 0 for fixed control points.
+  // Per track: Sigma_X, the point's marginal covariance times sigma0^2 (mm^2); NaN for tracks
+  // outside the adjustment, 0 for fixed control points.
+  std::vector<Eigen::Matrix3d> covariance_mm2;
+  // Per track: sqrt(lambda_max(Sigma_X)), the standard deviation along the point's worst
+  // direction (the semi-major axis of its standard error ellipsoid) in mm; NaN for tracks
+  // outside the adjustment, 0 for fixed control points. See largest_axis_sigma_mm.
   std::vector<double> sigma_mm;
 };
 
@@ -43,6 +49,17 @@ struct PointUncertainty {
 // Per-point method: Sigma_e_i = sigma0^2 V_i^-1 (poses and intrinsics treated as exact).
 // The gauge must be fixed by the setup (control points, a fixed image and scale bars, or a fixed
 // translation coordinate); a singular S also falls back to the per-point method.
+// The standard deviation of a point along its worst direction:
+//   sigma_max = sqrt(lambda_max(Sigma_X)),
+// the semi-major axis of the standard (1-sigma) error ellipsoid of X, whose axes are the
+// eigenvectors of Sigma_X and half-lengths the square roots of its eigenvalues (Hartley &
+// Zisserman 2004, sec. 5.2, the uncertainty ellipsoid of an estimate; Mikhail, Bethel & McGlone
+// 2001, error ellipsoids). For a point seen at a narrow intersection angle this axis lies along
+// its rays (depth sigma ~ lateral sigma / sin(angle)), which the RMS per axis sqrt(trace / 3)
+// dilutes and the reprojection error does not see at all. 0 for a zero matrix, NaN for a
+// non-finite one.
+double largest_axis_sigma_mm(const Eigen::Matrix3d& covariance_mm2);
+
 PointUncertainty point_uncertainty(const Scene& scene, const BundleSetup& setup, const BundleOptions& bundle,
                                    const CovarianceOptions& options);
 

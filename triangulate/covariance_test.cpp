@@ -2,6 +2,7 @@
 // estimation (ceres::Covariance, sparse QR) of the same problem, for each kind of datum.
 #include <gtest/gtest.h>
 #include <ceres/covariance.h>
+#include <Eigen/Eigenvalues>
 
 #include "triangulate/covariance.hpp"
 #include "triangulate/reconstruct.hpp"
@@ -76,8 +77,13 @@ TEST_P(CovarianceReference, MatchesCeresCovariance) {
   for (std::size_t k = 0; k < tracks.size(); ++k) {
     double c[9];
     ASSERT_TRUE(covariance.GetCovarianceBlock(blocks[k].first, blocks[k].second, c));
-    const double expected = std::sqrt(mine.variance_factor * (c[0] + c[4] + c[8]) / 3);
+    // The whole 3x3 block, and sigma_mm its largest axis (covariance.hpp).
+    const Eigen::Matrix3d ceres_cov = mine.variance_factor * Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(c);
+    const Eigen::Matrix3d& cov = mine.covariance_mm2[tracks[k]];
+    EXPECT_LE((cov - ceres_cov).norm(), 1e-6 * ceres_cov.norm()) << "track " << r.scene.tracks[tracks[k]].id;
+    const double expected = std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(ceres_cov).eigenvalues().maxCoeff());
     EXPECT_NEAR(mine.sigma_mm[tracks[k]], expected, 1e-6 * expected) << "track " << r.scene.tracks[tracks[k]].id;
+    EXPECT_GE(mine.sigma_mm[tracks[k]], std::sqrt(ceres_cov.trace() / 3));
   }
 }
 

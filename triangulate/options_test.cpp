@@ -30,7 +30,9 @@ using photomill::test::ToolResult;
 
 // Sized: the plain scene whose tracks give each observation a size_px, every third one 12 px and
 // 0.6 px off (the rest 1 px and exact): weighting by size tells them apart.
-enum class Scene { Plain, Markers, Outliers, Sized };
+// TwoView: 1000 part points seen in every view that sees them, and two-view tracks: three wrong
+// matches (6 mm along the first view's ray) and one true point.
+enum class Scene { Plain, Markers, Outliers, Sized, TwoView };
 
 // A scene's files: tracks.csv, camera.yaml, control.csv, and bars.csv (one bar without a sigma).
 class SceneFiles {
@@ -39,7 +41,16 @@ public:
     test::SceneOptions o;
     if (kind == Scene::Markers) o.plate_marker_side_mm = 20;
     if (kind == Scene::Outliers) o.outlier_fraction = 0.02;
+    if (kind == Scene::TwoView) o.random_part_points = 1000;
     test::SceneTruth t = test::make_scene(o);
+    if (kind == Scene::TwoView) {
+      const std::vector<std::pair<double, double>> at = {{3.1, -2.4}, {-20, 10}, {25, 15}, {10.3, -7.9}};
+      for (std::size_t k = 0; k < at.size(); ++k) {
+        const auto [x, y] = at[k];
+        test::add_two_view_track(t, 900000 + static_cast<TrackId>(k), 2 * k, 2 * k + 1,
+                                 {x, y, test::part_height_mm(o, x, y)}, k < 3 ? 6.0 : 0.0);
+      }
+    }
     if (kind == Scene::Sized) test::give_sizes_spoil_large(t.tracks);
     write("tracks.csv", [&](std::ostream& s) { write_tracks(s, t.tracks); });
     write("camera.yaml", [&](std::ostream& s) { write_camera_yaml(s, t.camera); });
@@ -64,8 +75,13 @@ private:
 };
 
 const SceneFiles& files(Scene kind) {
-  static const SceneFiles plain(Scene::Plain), markers(Scene::Markers), outliers(Scene::Outliers), sized(Scene::Sized);
-  return kind == Scene::Markers ? markers : kind == Scene::Outliers ? outliers : kind == Scene::Sized ? sized : plain;
+  static const SceneFiles plain(Scene::Plain), markers(Scene::Markers), outliers(Scene::Outliers), sized(Scene::Sized),
+      two_view(Scene::TwoView);
+  return kind == Scene::Markers    ? markers
+         : kind == Scene::Outliers ? outliers
+         : kind == Scene::Sized    ? sized
+         : kind == Scene::TwoView  ? two_view
+                                   : plain;
 }
 
 struct Outcome {
@@ -101,6 +117,11 @@ const Outcome& plain() {
   static const Outcome run = triangulate(Scene::Plain, {});
   return run;
 }
+const Outcome& two_view() {
+  static const Outcome run = triangulate(Scene::TwoView, {});
+  return run;
+}
+double two_view_field(const Outcome& r, const std::string& key) { return json_number(r.report, key, "two_view_check"); }
 const Outcome& plain_outliers() {
   static const Outcome run = triangulate(Scene::Outliers, {});
   return run;
@@ -311,7 +332,46 @@ INSTANTIATE_TEST_SUITE_P(
         bad("min_shared_tracks_four", {"--min-shared-tracks", "4"}, "--min-shared-tracks"),
         OptionCase{"initial_min_angle_deg", Scene::Plain, {"--scale-bars", "{bars}", "--initial-min-angle-deg", "179"}, 1,
                    "median angle below 179", nullptr},
-        bad("initial_min_angle_deg_negative", {"--initial-min-angle-deg", "-1"}, "--initial-min-angle-deg")),
+        bad("initial_min_angle_deg_negative", {"--initial-min-angle-deg", "-1"}, "--initial-min-angle-deg"),
+        // Two-view points: the default run removes the three wrong matches and keeps the true one.
+        OptionCase{"two_view_defaults", Scene::TwoView, {}, 0, "--two-view-sigmas",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(json_raw(r.report, "ran", "two_view_check"), "true") << r.report;
+                     EXPECT_EQ(two_view_field(r, "checked"), 4);
+                     EXPECT_EQ(two_view_field(r, "removed_off_neighbours"), 3);
+                     EXPECT_EQ(two_view_field(r, "kept"), 1);
+                     EXPECT_EQ(json_number(r.report, "two_view_off_neighbours", "tracks_dropped"), 3);
+                     EXPECT_EQ(json_raw(plain().report, "ran", "two_view_check"), "false") << "no two-view point";
+                   }},
+        OptionCase{"no_two_view_check", Scene::TwoView, {"--no-two-view-check"}, 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(json_raw(r.report, "enabled", "two_view_check"), "false") << r.report;
+                     EXPECT_EQ(two_view_field(r, "checked"), 0);
+                     EXPECT_EQ(json_number(r.report, "points"), json_number(two_view().report, "points") + 3);
+                   }},
+        OptionCase{"two_view_sigmas", Scene::TwoView, {"--two-view-sigmas", "1e5"}, 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(two_view_field(r, "sigmas"), 1e5);
+                     EXPECT_EQ(two_view_field(r, "removed_off_neighbours"), 0) << r.report;
+                   }},
+        bad("two_view_sigmas_zero", {"--two-view-sigmas", "0"}, "--two-view-sigmas"),
+        OptionCase{"two_view_tolerance_mm", Scene::TwoView, {"--two-view-tolerance-mm", "50"}, 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(two_view_field(r, "tolerance_mm"), 50);
+                     EXPECT_EQ(two_view_field(r, "removed_off_neighbours"), 0) << r.report;
+                   }},
+        bad("two_view_tolerance_mm_negative", {"--two-view-tolerance-mm", "-1"}, "--two-view-tolerance-mm"),
+        OptionCase{"two_view_reach", Scene::TwoView, {"--two-view-reach", "0.01"}, 0, "",
+                   // Nothing seen in three views is that close: every two-view point unsupported.
+                   [](const Outcome& r) { EXPECT_EQ(two_view_field(r, "removed_unsupported"), 4) << r.report; }},
+        bad("two_view_reach_zero", {"--two-view-reach", "0"}, "--two-view-reach"),
+        OptionCase{"two_view_neighbours", Scene::TwoView, {"--two-view-neighbours", "5"}, 0, "",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(two_view_field(r, "neighbours"), 5);
+                     EXPECT_LT(two_view_field(r, "spacing_mm"), two_view_field(two_view(), "spacing_mm"))
+                         << "the 5th neighbour is nearer than the 12th";
+                   }},
+        bad("two_view_neighbours_two", {"--two-view-neighbours", "2"}, "--two-view-neighbours")),
     [](const auto& info) { return std::string(info.param.name); });
 
 }  // namespace

@@ -58,6 +58,7 @@ private:
   void choose_datum();
   void final_adjustment();
   void prune();
+  void check_two_view(Reconstruction& r, const std::vector<std::size_t>& views);
   using Sigmas = std::array<double, kObservationClasses>;
   Sigmas robust_sigma_px() const;
   std::vector<double> active_errors(std::vector<std::size_t>* which) const;
@@ -805,31 +806,74 @@ void Pipeline::final_adjustment() {
   report_.final_iterations = last_.iterations;
 }
 
+// Two-view points against their neighbours seen in three or more views (two_view.hpp), after
+// the final adjustment: each removed one leaves the result (in_result 0), is counted in
+// tracks_dropped and listed in the report, and one warning gives the count and the options.
+// The adjustment is not run again: a wrong two-view match reprojects well (that is why it needs
+// this check), so it pulled no camera.
+void Pipeline::check_two_view(Reconstruction& r, const std::vector<std::size_t>& views) {
+  TwoViewReport& tr = report_.two_view;
+  const TwoViewOptions& o = o_.two_view;
+  tr.enabled = o.enabled;
+  tr.neighbours = o.neighbours;
+  tr.reach = o.reach;
+  tr.sigmas = o.sigmas;
+  tr.tolerance_mm = o.tolerance_mm;
+  std::vector<CheckedPoint> pts(scene_.tracks.size());
+  // Scale-bar ends took part as bars: judged as control points are (references, never removed).
+  std::vector<char> bar_end(scene_.tracks.size(), 0);
+  for (const ScaleConstraint& b : bars_) bar_end[b.track_a] = bar_end[b.track_b] = 1;
+  for (std::size_t t = 0; t < scene_.tracks.size(); ++t) {
+    if (!r.in_result[t]) continue;  // views 0: neither checked nor a reference
+    pts[t].xyz_mm = scene_.tracks[t].xyz_mm;
+    pts[t].views = views[t];
+    pts[t].control = scene_.tracks[t].at_control || bar_end[t];
+    if (r.covariance_mm2[t].allFinite()) pts[t].covariance_mm2 = r.covariance_mm2[t];
+  }
+  TwoViewOptions opts = o;
+  opts.threads = o_.threads;
+  const TwoViewCheck c = check_two_view_points(pts, opts);
+  tr.ran = c.ran;
+  tr.reference_points = c.reference_points;
+  tr.spacing_mm = c.spacing_mm;
+  tr.checked = c.checked;
+  tr.removed_unsupported = c.unsupported;
+  tr.removed_off_neighbours = c.off_neighbours;
+  for (std::size_t t = 0; t < scene_.tracks.size(); ++t) {
+    const TwoViewVerdict v = c.verdict[t];
+    if (v != TwoViewVerdict::Unsupported && v != TwoViewVerdict::OffNeighbours) continue;
+    r.in_result[t] = 0;
+    const std::string reason = v == TwoViewVerdict::Unsupported ? "unsupported" : "off_neighbours";
+    ++report_.tracks_dropped["two_view_" + reason];
+    const Eigen::Vector3d& x = scene_.tracks[t].xyz_mm;
+    tr.removed.push_back({scene_.tracks[t].id, {x.x(), x.y(), x.z()}, reason, c.distance_mm[t], c.allowed_mm[t]});
+  }
+  if (!tr.removed.empty()) {
+    report_.warnings.push_back(
+        std::to_string(tr.removed.size()) + " of " + std::to_string(c.checked) + " two-view points removed (" +
+        std::to_string(c.unsupported) + " with no point seen in three views within " + fmt(o.reach * c.spacing_mm) +
+        " mm (--two-view-reach), " + std::to_string(c.off_neighbours) +
+        " off their neighbours' surface by more than --two-view-sigmas " + fmt(o.sigmas) + " sigma and --two-view-tolerance-mm " +
+        fmt(o.tolerance_mm) + "); --no-two-view-check keeps them");
+  }
+}
+
 void Pipeline::finish(Reconstruction& r) {
   Report& rep = report_;
   r.in_result.assign(scene_.tracks.size(), 0);
-  std::vector<double> sq(scene_.images.size(), 0);
-  std::vector<std::size_t> n(scene_.images.size(), 0);
-  double total = 0;
-  std::size_t count = 0, unknown_points = 0;
+  std::vector<std::size_t> views(scene_.tracks.size(), 0);
+  std::size_t unknown_points = 0;
   for (std::size_t t = 0; t < scene_.tracks.size(); ++t) {
-    const auto act = scene_.active_observations(t);
-    if (!in_adjustment(scene_, t, act.size())) {
+    const std::size_t act = scene_.active_observations(t).size();
+    if (!in_adjustment(scene_, t, act)) {
       const SceneTrack& track = scene_.tracks[t];
       const TrackIssue issue = track.issue == TrackIssue::None ? TrackIssue::NotRegistered : track.issue;
       ++rep.tracks_dropped[to_string(issue)];
       continue;
     }
     r.in_result[t] = 1;
+    views[t] = act;
     unknown_points += scene_.tracks[t].at_control ? 0 : 1;
-    for (std::size_t o : act) {
-      const double e = reprojection_error_px(scene_, o);
-      const std::size_t i = scene_.observations[o].image;
-      sq[i] += e * e;
-      ++n[i];
-      total += e * e;
-      ++count;
-    }
   }
   if (unknown_points == 0) {
     std::size_t worst = 0;
@@ -843,6 +887,33 @@ void Pipeline::finish(Reconstruction& r) {
     std::string hint;
     if (reason == "small_angle") hint = " (no baseline: the photos seem taken from one place; move the camera between photos)";
     throw GeometryError("no track could be triangulated; most failed with '" + reason + "'" + hint);
+  }
+  // The points' uncertainty (from the final adjustment, which every point above took part in),
+  // then the two-view check that uses it.
+  CovarianceOptions co = o_.covariance;
+  co.threads = o_.threads;
+  const PointUncertainty u = point_uncertainty(scene_, setup_, o_.bundle, co);
+  r.sigma_mm = u.sigma_mm;
+  r.covariance_mm2 = u.covariance_mm2;
+  rep.sigma_method = to_string(u.method);
+  rep.variance_factor = u.variance_factor;
+  check_two_view(r, views);
+
+  std::vector<double> sq(scene_.images.size(), 0);
+  std::vector<std::size_t> n(scene_.images.size(), 0);
+  double total = 0;
+  std::size_t count = 0;
+  for (std::size_t t = 0; t < scene_.tracks.size(); ++t) {
+    if (!r.in_result[t]) continue;
+    const auto act = scene_.active_observations(t);
+    for (std::size_t o : act) {
+      const double e = reprojection_error_px(scene_, o);
+      const std::size_t i = scene_.observations[o].image;
+      sq[i] += e * e;
+      ++n[i];
+      total += e * e;
+      ++count;
+    }
   }
   rep.points = static_cast<std::size_t>(std::count(r.in_result.begin(), r.in_result.end(), 1));
   for (std::size_t t = 0; t < scene_.tracks.size(); ++t) {
@@ -891,12 +962,6 @@ void Pipeline::finish(Reconstruction& r) {
     cr.observations = scene_.active_observations(t).size();
     rep.control_points.push_back(cr);
   }
-  CovarianceOptions co = o_.covariance;
-  co.threads = o_.threads;
-  const PointUncertainty u = point_uncertainty(scene_, setup_, o_.bundle, co);
-  r.sigma_mm = u.sigma_mm;
-  rep.sigma_method = to_string(u.method);
-  rep.variance_factor = u.variance_factor;
   rep.loss = to_string(o_.bundle.loss);
   rep.loss_scale_px = o_.bundle.loss_scale_px;
   rep.refine_intrinsics = to_string(o_.bundle.refine_intrinsics);

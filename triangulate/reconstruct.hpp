@@ -5,7 +5,8 @@
 //      then further images by PnP;
 //   2. multi-view triangulation of every track (triangulation.hpp);
 //   3. bundle adjustment with the datum inside it, outlier removal and re-solving (bundle.hpp);
-//   4. point uncertainty from the adjustment (covariance.hpp).
+//   4. point uncertainty from the adjustment (covariance.hpp);
+//   5. two-view points checked against their neighbours (two_view.hpp).
 // Throws GeometryError with an explanation for degenerate input, UsageError when no datum for
 // the scale was given.
 #pragma once
@@ -25,6 +26,7 @@
 #include "triangulate/report.hpp"
 #include "triangulate/scene.hpp"
 #include "triangulate/triangulation.hpp"
+#include "triangulate/two_view.hpp"
 
 namespace photomill::triangulate {
 
@@ -68,6 +70,9 @@ struct ReconstructOptions {
   long long max_total_iterations = 50'000;
   RansacOptions ransac;
   CovarianceOptions covariance;
+  // After the final adjustment: two-view points that no third view checks are kept only where
+  // they agree with their neighbours seen in three or more views (two_view.hpp).
+  TwoViewOptions two_view;
   ScaleOptions scale;
   OutlierOptions outliers;
   // Standard deviation of an image measurement, pixels; nullopt: estimated from the residuals
@@ -128,6 +133,7 @@ struct Reconstruction {
   Scene scene;                     // final poses, points, inlier flags
   Camera camera;                   // as given, or refined by self-calibration
   std::vector<double> sigma_mm;    // per track (see covariance.hpp); NaN outside the result
+  std::vector<Eigen::Matrix3d> covariance_mm2;  // per track (see covariance.hpp); NaN outside the adjustment
   std::vector<char> in_result;     // per track: part of the output cloud
   BundleSetup setup;               // datum, gauge and sigmas of the final adjustment
   Report report;

@@ -38,13 +38,15 @@ std::vector<ScaleBar> bars_of(const SceneTruth& truth, double sigma_mm) {
   return bars;
 }
 
-// RMS over the unknown points of the predicted per-axis sigma.
+// RMS over the unknown points of the predicted per-axis sigma, sqrt(trace(Sigma_X) / 3) (the
+// cloud's sigma_mm is the largest axis, at least this).
 double predicted_sigma_mm(const Reconstruction& r) {
   double sum = 0;
   std::size_t n = 0;
   for (std::size_t t = 0; t < r.scene.tracks.size(); ++t) {
     if (!r.in_result[t] || r.scene.tracks[t].at_control) continue;
-    sum += r.sigma_mm[t] * r.sigma_mm[t];
+    sum += r.covariance_mm2[t].trace() / 3;
+    EXPECT_GE(r.sigma_mm[t] * r.sigma_mm[t], r.covariance_mm2[t].trace() / 3 * (1 - 1e-12));
     ++n;
   }
   return n ? std::sqrt(sum / static_cast<double>(n)) : 0;

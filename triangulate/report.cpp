@@ -1,6 +1,7 @@
 // Report output (see report.hpp).
 #include "triangulate/report.hpp"
 
+#include <cmath>
 #include <sstream>
 
 #include "formats/run.hpp"
@@ -103,6 +104,38 @@ void write_report_json(std::ostream& out, const Report& r) {
   j.key("tracks_dropped").begin_object();
   for (const auto& [why, n] : r.tracks_dropped) j.field(why, n);
   j.end_object();
+  {
+    const TwoViewReport& t = r.two_view;
+    j.key("two_view_check").begin_object();
+    j.field("enabled", t.enabled);
+    j.field("ran", t.ran);
+    j.field("reference_points", t.reference_points);
+    j.field("spacing_mm", t.spacing_mm);
+    j.field("checked", t.checked);
+    j.field("kept", t.checked - t.removed_unsupported - t.removed_off_neighbours);
+    j.field("removed_unsupported", t.removed_unsupported);
+    j.field("removed_off_neighbours", t.removed_off_neighbours);
+    j.field("neighbours", t.neighbours);
+    j.field("reach", t.reach);
+    j.field("sigmas", t.sigmas);
+    j.field("tolerance_mm", t.tolerance_mm);
+    j.key("removed").begin_array();
+    for (const RemovedPoint& p : t.removed) {
+      j.begin_object();
+      j.field("track_id", static_cast<std::int64_t>(p.track_id));
+      j.key("xyz_mm").begin_array();
+      for (double v : p.xyz_mm) j.value(v);
+      j.end_array();
+      j.field("reason", p.reason);
+      j.key("distance_mm");
+      std::isfinite(p.distance_mm) ? j.value(p.distance_mm) : j.null();
+      j.key("allowed_mm");
+      std::isfinite(p.allowed_mm) ? j.value(p.allowed_mm) : j.null();
+      j.end_object();
+    }
+    j.end_array();
+    j.end_object();
+  }
   j.key("scale_bars").begin_array();
   for (const ScaleBarReport& b : r.scale_bars) {
     j.begin_object();
@@ -186,6 +219,12 @@ void log_report(const Report& r) {
                " px (round " + std::to_string(o.round) + ")");
   }
   log::info("point sigma: " + r.sigma_method + ", variance factor " + fmt(r.variance_factor));
+  for (const RemovedPoint& p : r.two_view.removed) {
+    log::debug("two-view point removed: track " + std::to_string(p.track_id) + " at (" + fmt(p.xyz_mm[0]) + ", " +
+               fmt(p.xyz_mm[1]) + ", " + fmt(p.xyz_mm[2]) + ") " +
+               (p.reason == "unsupported" ? std::string("has no neighbour seen in three views")
+                                          : fmt(p.distance_mm) + " mm off its neighbours' surface (allowed " + fmt(p.allowed_mm) + " mm)"));
+  }
 }
 
 }  // namespace photomill::triangulate

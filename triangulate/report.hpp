@@ -52,6 +52,29 @@ struct ClassReport {
   double sigma_px = 0;              // its sigma per coordinate (estimated or given)
 };
 
+// A two-view point removed by the check against its neighbours (two_view.hpp).
+struct RemovedPoint {
+  TrackId track_id = 0;
+  double xyz_mm[3] = {0, 0, 0};
+  std::string reason;               // "unsupported" or "off_neighbours"
+  double distance_mm = 0;           // |d| off the neighbours' plane (NaN: unsupported)
+  double allowed_mm = 0;            // its bound (NaN: unsupported)
+};
+
+// The check of two-view points against their neighbours (two_view.hpp), and its options.
+struct TwoViewReport {
+  bool enabled = true;
+  bool ran = false;                 // false: disabled, no two-view point, or too few references
+  std::size_t reference_points = 0; // seen in min_views or more, and control points
+  double spacing_mm = 0;            // D, the references' median k-th neighbour distance
+  std::size_t checked = 0;          // two-view points judged
+  std::size_t removed_unsupported = 0;
+  std::size_t removed_off_neighbours = 0;
+  std::size_t neighbours = 0;
+  double reach = 0, sigmas = 0, tolerance_mm = 0;
+  std::vector<RemovedPoint> removed;
+};
+
 struct Report {
   // Datum: "known_poses", "known_poses+control_points", "control_points", "scale_bars",
   // "marker_side", "scale_bars+marker_side", "arbitrary_scale".
@@ -84,6 +107,7 @@ struct Report {
   std::vector<ImageReport> per_image;
   std::vector<RemovedObservation> removed;
   std::map<std::string, std::size_t> tracks_dropped;   // by reason
+  TwoViewReport two_view;
   std::vector<ScaleBarReport> scale_bars;
   std::vector<ControlReport> control_points;
   std::vector<std::string> warnings;

@@ -153,6 +153,30 @@ SceneTruth make_scene(const SceneOptions& o) {
   return s;
 }
 
+Eigen::Vector2d project(const SceneTruth& truth, std::size_t view, const Eigen::Vector3d& X) {
+  const Pose& pose = truth.poses[view];
+  const Eigen::AngleAxisd aa(pose.rotation());
+  const Eigen::Vector3d rv = aa.angle() * aa.axis();
+  const cv::Mat rvec = (cv::Mat_<double>(3, 1) << rv.x(), rv.y(), rv.z());
+  const Eigen::Vector3d& t = pose.cam_from_world_translation_mm;
+  const cv::Mat tvec = (cv::Mat_<double>(3, 1) << t.x(), t.y(), t.z());
+  cv::Mat K, dist(1, static_cast<int>(truth.camera.distortion.size()), CV_64F);
+  cv::eigen2cv(truth.camera.camera_matrix, K);
+  for (std::size_t i = 0; i < truth.camera.distortion.size(); ++i) dist.at<double>(static_cast<int>(i)) = truth.camera.distortion[i];
+  std::vector<cv::Point2d> uv;
+  cv::projectPoints(std::vector<cv::Point3d>{{X.x(), X.y(), X.z()}}, rvec, tvec, K, dist, uv);
+  return {uv[0].x, uv[0].y};
+}
+
+Eigen::Vector3d add_two_view_track(SceneTruth& truth, TrackId id, std::size_t a, std::size_t b, const Eigen::Vector3d& X,
+                                   double depth_mm) {
+  const Eigen::Vector3d there = X + depth_mm * (X - truth.poses[a].centre_mm()).normalized();
+  const Eigen::Vector2d ua = project(truth, a, X), ub = project(truth, b, there);
+  truth.tracks.push_back({id, truth.poses[a].image, ua.x(), ua.y()});
+  truth.tracks.push_back({id, truth.poses[b].image, ub.x(), ub.y()});
+  return there;
+}
+
 Accuracy evaluate(const Reconstruction& r, const SceneTruth& truth, bool similarity) {
   std::map<PointId, Eigen::Vector3d> true_points;
   for (const auto& p : truth.plate_points) true_points[p.point_id] = p.xyz_mm;

@@ -70,6 +70,16 @@ struct Accuracy {
 };
 Accuracy evaluate(const Reconstruction& r, const SceneTruth& truth, bool similarity);
 
+// X projected into view `view` of the scene (OpenCV's cv::projectPoints, no noise).
+Eigen::Vector2d project(const SceneTruth& truth, std::size_t view, const Eigen::Vector3d& X);
+
+// Adds a track `id` seen in views a and b only: X in view a, and in view b the point
+// depth_mm farther along a's ray through X (on X's epipolar line in b: a wrong match that
+// triangulates depth_mm along the ray from X with no reprojection error; 0: a true two-view
+// point). No noise. Returns where the two rays meet.
+Eigen::Vector3d add_two_view_track(SceneTruth& truth, TrackId id, std::size_t a, std::size_t b, const Eigen::Vector3d& X,
+                                   double depth_mm);
+
 // Height of the part surface at (x, y): a smooth bump on the plate (0 outside the part).
 double part_height_mm(const SceneOptions& options, double x, double y);
 

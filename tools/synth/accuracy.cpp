@@ -269,6 +269,156 @@ double distance_to_truth(const synth::HeightField& h, const Eigen::Vector3d& c, 
   return std::sqrt(d2);
 }
 
+// Distance from c to the true part's surface (not the solid): the graph of H(x, y) = h(x, y) over
+// the part's rectangle and 0 on the plate and beyond, with a walled part's faces (x = x_min...,
+// from z = 0 up to the top at the wall). The vertical distance |c.z - H(c.x, c.y)| bounds it
+// from above; when that is more than `within_mm`, the graph is sampled on a kPointGridMm grid
+// over |x - c.x|, |y - c.y| <= kPointReachMm (overestimating the distance by about t^2 / (2 d),
+// t <= 0.036 mm the offset of the nearest sample, d the distance: under 1 um for d >= 1 mm) and
+// the walls' faces are measured exactly. Returns at most kPointReachMm when the vertical distance
+// is larger and nothing nearer was found, so it is exact up to the reach.
+constexpr double kPointGridMm = 0.05, kPointReachMm = 3;
+double distance_to_surface(const synth::HeightField& h, const Eigen::Vector3d& c, double within_mm) {
+  auto H = [&](double x, double y) { return h.contains(x, y) || (h.walled() && x >= h.x_min_mm && x <= h.x_max_mm &&
+                                                                   y >= h.y_min_mm && y <= h.y_max_mm)
+                                                ? h.height_mm(x, y)
+                                                : 0.0; };
+  double d = std::abs(c.z() - H(c.x(), c.y()));
+  if (d <= within_mm) return d;
+  // The nearest point of the graph is no farther than d in x, y either.
+  const double reach = std::min(kPointReachMm, d);
+  for (double dx = -reach; dx <= reach; dx += kPointGridMm) {
+    for (double dy = -reach; dy <= reach; dy += kPointGridMm) {
+      const double x = c.x() + dx, y = c.y() + dy;
+      d = std::min(d, std::sqrt(dx * dx + dy * dy + (c.z() - H(x, y)) * (c.z() - H(x, y))));
+    }
+  }
+  if (h.walled()) {
+    // A face x = x0, y in [y_min, y_max], z in [0, f(x0, y)]: the top at the wall varies along
+    // it, so its nearest point is sampled along y (same grid) with z clamped.
+    for (const bool along_x : {false, true}) {
+      const double lo = along_x ? h.x_min_mm : h.y_min_mm, hi = along_x ? h.x_max_mm : h.y_max_mm;
+      for (const double at : along_x ? std::vector<double>{h.y_min_mm, h.y_max_mm} : std::vector<double>{h.x_min_mm, h.x_max_mm}) {
+        const double across = (along_x ? c.y() : c.x()) - at;
+        if (std::abs(across) >= d) continue;
+        const double centre = along_x ? c.x() : c.y();
+        for (double s = std::max(lo, centre - reach); s <= std::min(hi, centre + reach); s += kPointGridMm / 2) {
+          const double top = along_x ? h.wall_top_mm(s, at) : h.wall_top_mm(at, s);
+          const double dz = c.z() < 0 ? -c.z() : std::max(0.0, c.z() - top);
+          d = std::min(d, std::sqrt(across * across + (centre - s) * (centre - s) + dz * dz));
+        }
+      }
+    }
+  }
+  return d;
+}
+
+// Issue 24: "no point of the photo cloud more than 1 mm from the truth reaches the fit: each is
+// removed before fitsurf or reported as an outlier by it (--residuals)". Counts the cloud's
+// points (control points left out) farther than kFarPointMm from the true surface, and of
+// those the ones fitsurf's residual cloud (residuals.ply: the points it fitted, scalar_weight 0
+// for an outlier) holds with a positive weight. -v lists each one that reached the fit.
+constexpr double kFarPointMm = 1;
+
+// The height a point over the part's top should have: h inside the part's rectangle and, on a
+// walled part, the top at the wall (f at the rectangle's nearest point) up to kFarPointMm outside
+// it; NaN beyond (the plate). A point on a wall's face is on the true surface but, for a fit of
+// the top as a height field, as far off as it is under the rim: counted apart.
+double top_height_mm(const synth::HeightField& h, double x, double y) {
+  const double out_x = std::max({h.x_min_mm - x, x - h.x_max_mm, 0.0});
+  const double out_y = std::max({h.y_min_mm - y, y - h.y_max_mm, 0.0});
+  if (out_x == 0 && out_y == 0) return h.walled() ? h.wall_top_mm(x, y) : h.height_mm(x, y);
+  if (h.walled() && std::hypot(out_x, out_y) <= kFarPointMm) return h.wall_top_mm(x, y);
+  return NAN;
+}
+
+// --cloud-distances FILE: every point of the cloud (control points left out) with its distance
+// to the true surface (exact up to kPointReachMm, at least that beyond; below 0.01 mm the
+// vertical distance, an upper bound) and its vertical offset
+// from the top (top_height_mm; empty over the plate), for studying what reaches the fit.
+void write_cloud_distances(const fs::path& file, const synth::HeightField& h, const PointCloud& cloud) {
+  std::ofstream out(file);
+  if (!out) throw InputError(file.string(), 0, "cannot write");
+  out.precision(10);
+  out << "track_id,x_mm,y_mm,z_mm,views,sigma_mm,distance_mm,top_offset_mm\n";
+  const PointProperty* control = cloud.find("control");
+  const PointProperty* views = cloud.find("views");
+  const PointProperty* sigma = cloud.find("sigma_mm");
+  const PointProperty* ids = cloud.find("track_id");
+  for (std::size_t k = 0; k < cloud.points_mm.size(); ++k) {
+    if (control && control->values[k] != 0) continue;
+    const Eigen::Vector3d& p = cloud.points_mm[k];
+    const double top = top_height_mm(h, p.x(), p.y());
+    out << (ids ? ids->values[k] : NAN) << "," << p.x() << "," << p.y() << "," << p.z() << ","
+        << (views ? views->values[k] : NAN) << "," << (sigma ? sigma->values[k] : NAN) << ","
+        << distance_to_surface(h, p, 0.01) << ",";
+    if (std::isfinite(top)) out << p.z() - top;
+    out << "\n";
+  }
+  if (!out) throw InputError(file.string(), 0, "write failed");
+}
+
+void cloud_figures(Report& r, const synth::HeightField& h, const PointCloud& cloud, const PointCloud* fitted) {
+  auto far = [&](const PointCloud& pc, const PointProperty* weight, std::size_t& n, std::size_t& far_n, std::size_t& two_view_far) {
+    const PointProperty* control = pc.find("control");
+    const PointProperty* views = pc.find("views");
+    const PointProperty* sigma = pc.find("sigma_mm");
+    const PointProperty* ids = pc.find("track_id");
+    for (std::size_t k = 0; k < pc.points_mm.size(); ++k) {
+      if (control && control->values[k] != 0) continue;
+      if (weight && !(weight->values[k] > 0)) continue;
+      ++n;
+      const double d = distance_to_surface(h, pc.points_mm[k], kFarPointMm);
+      if (!(d > kFarPointMm)) continue;
+      ++far_n;
+      if (views && views->values[k] == 2) ++two_view_far;
+      if (weight) {
+        const Eigen::Vector3d& p = pc.points_mm[k];
+        log::debug("in the fit, " + format_double(d) + " mm (or more) from the true surface: track " +
+                   (ids ? format_double(ids->values[k]) : std::string("?")) + " at (" + format_double(p.x()) + ", " +
+                   format_double(p.y()) + ", " + format_double(p.z()) + "), " +
+                   (views ? format_double(views->values[k]) : std::string("?")) + " views, sigma_mm " +
+                   (sigma ? format_double(sigma->values[k]) : std::string("?")) + ", weight " +
+                   format_double(weight->values[k]));
+      }
+    }
+  };
+  std::size_t n = 0, far_n = 0, two_view = 0;
+  far(cloud, nullptr, n, far_n, two_view);
+  log::info("cloud: " + std::to_string(far_n) + " of " + std::to_string(n) + " points more than " +
+            format_double(kFarPointMm) + " mm from the true surface (" + std::to_string(two_view) + " of them two-view)");
+  if (!fitted) {
+    r.missing("cloud points over 1 mm off the truth in the fit", "no residuals.ply: run fitsurf with --residuals");
+    return;
+  }
+  const PointProperty* weight = fitted->find("weight");
+  if (!weight) {
+    r.missing("cloud points over 1 mm off the truth in the fit", "residuals.ply has no weight property");
+    return;
+  }
+  std::size_t fn = 0, ffar = 0, ftwo = 0;
+  far(*fitted, weight, fn, ffar, ftwo);
+  log::info("fit: " + std::to_string(ffar) + " of the " + std::to_string(fn) + " points fitsurf weighted more than " +
+            format_double(kFarPointMm) + " mm from the true surface (" + std::to_string(ftwo) + " of them two-view)");
+  std::size_t off_top = 0, off_top_two_view = 0;
+  const PointProperty* views = fitted->find("views");
+  for (std::size_t k = 0; k < fitted->points_mm.size(); ++k) {
+    if (!(weight->values[k] > 0)) continue;
+    const Eigen::Vector3d& p = fitted->points_mm[k];
+    const double top = top_height_mm(h, p.x(), p.y());
+    if (!(std::abs(p.z() - top) > kFarPointMm)) continue;
+    ++off_top;
+    if (views && views->values[k] == 2) ++off_top_two_view;
+    log::debug("in the fit, " + format_double(p.z() - top) + " mm off the top vertically at (" + format_double(p.x()) +
+               ", " + format_double(p.y()) + ", " + format_double(p.z()) + ")" +
+               (views ? ", " + format_double(views->values[k]) + " views" : std::string()));
+  }
+  log::info("fit: " + std::to_string(off_top) + " of its points over the part's top (a walled part's up to " +
+            format_double(kFarPointMm) + " mm beyond its walls) more than " + format_double(kFarPointMm) +
+            " mm above or under it (" + std::to_string(off_top_two_view) + " of them two-view)");
+  r.line("cloud points over 1 mm off the truth in the fit", static_cast<double>(ffar), "points", 0);
+}
+
 // Material left on the part's top by a ball end mill of radius R: a z-map (Anderson 1978, the
 // "z-buffer" of CAM verification) on a kZmapCellMm grid over the judged top holds the lowest
 // point of the ball over each cell, cz - sqrt(R^2 - d^2) for every ball centre within R in x, y;
@@ -368,7 +518,7 @@ void toolpath_figures(Report& r, const synth::PartScene& scene, const ClData& cl
 // Every figure that the outputs in `out` allow, against the truth in `set`; a stage listed in
 // `unavailable` (or whose output file is missing) prints "not yet available".
 void evaluate(const fs::path& set, const fs::path& out, std::map<std::string, std::string> unavailable,
-              const Bounds& bounds, Report& report) {
+              const Bounds& bounds, Report& report, const std::string& cloud_distances = "") {
   const synth::PartScene scene = read<synth::PartScene>(set / "scene.txt", synth::read_scene);
   auto why = [&](const std::string& stage, const fs::path& file) {
     if (unavailable.count(stage)) return unavailable[stage];
@@ -392,6 +542,16 @@ void evaluate(const fs::path& set, const fs::path& out, std::map<std::string, st
     marker_figures(report, truth,
                    read<PointCloud>(out / "cloud.ply", [](std::istream& in, const std::string& s) { return read_ply(in, s); }),
                    bounds);
+  }
+  if (const auto w = why("triangulate", out / "cloud.ply"); !w.empty()) {
+    report.missing("cloud points over 1 mm off the truth in the fit", w);
+  } else {
+    const auto ply = [](std::istream& in, const std::string& s) { return read_ply(in, s); };
+    const PointCloud cloud = read<PointCloud>(out / "cloud.ply", ply);
+    std::optional<PointCloud> fitted;
+    if (fs::exists(out / "residuals.ply")) fitted = read<PointCloud>(out / "residuals.ply", ply);
+    cloud_figures(report, scene.surface, cloud, fitted ? &*fitted : nullptr);
+    if (!cloud_distances.empty()) write_cloud_distances(cloud_distances, scene.surface, cloud);
   }
   if (const auto w = why("fitsurf", out / "surface.txt"); !w.empty()) {
     report.missing("surface deviation RMS", w);
@@ -459,7 +619,7 @@ std::map<std::string, std::string> run_pipeline(const std::string& bin_dir, cons
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string bin_dir = PHOTOMILL_BIN_DIR, work_dir, truth_dir, outputs_dir, until;
+  std::string bin_dir = PHOTOMILL_BIN_DIR, work_dir, truth_dir, outputs_dir, until, cloud_distances;
   bool small = false;
   Bounds bounds;
   synth::SynthOptions scene_options;  // the scene --work-dir renders: shape, walls, seed
@@ -486,6 +646,8 @@ int main(int argc, char** argv) {
         auto* truth = app.add_option("--truth", truth_dir, "Evaluate existing outputs instead: the synth set with the truth");
         auto* outputs = app.add_option("--outputs", outputs_dir,
                                        "... and the folder with camera.yaml, cloud.ply, surface.txt, path.cl");
+        app.add_option("--cloud-distances", cloud_distances,
+                       "Write every cloud point's distance to the true surface and vertical offset from the top (CSV)");
         truth->needs(outputs);
         outputs->needs(truth);
         work->excludes(truth);
@@ -501,7 +663,7 @@ int main(int argc, char** argv) {
         Report report;
         report.expected_failures.insert(expect_fail.begin(), expect_fail.end());
         if (!truth_dir.empty()) {
-          evaluate(truth_dir, outputs_dir, {}, bounds, report);
+          evaluate(truth_dir, outputs_dir, {}, bounds, report, cloud_distances);
         } else {
           const fs::path work = fs::absolute(work_dir), set = work / "set", out = work / "pipeline";
           // Only the two subfolders this tool owns are replaced, never the folder given.
