@@ -2,6 +2,7 @@
 #include "fitsurf/cli.hpp"
 
 #include <charconv>
+#include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <set>
@@ -11,6 +12,7 @@
 #include "fitsurf/report.hpp"
 #include "formats/cad.hpp"
 #include "formats/error.hpp"
+#include "formats/log.hpp"
 #include "formats/option_checks.hpp"
 #include "formats/surface.hpp"
 #include "formats/tool.hpp"
@@ -38,6 +40,13 @@ void add_options(CLI::App& app, Cli& c) {
                  "Write a PNG view of the fit along the plane normal: the shaded surface and the points coloured "
                  "by residual, with a colour bar in mm")
       ->group(out);
+  app.add_option("--uncertainty", c.uncertainty,
+                 "Also write how well each part of the surface is measured: the standard deviation of its height on "
+                 "a grid over the data's x, y (CSV x_mm,y_mm,sigma_mm; for toolpath --stock-uncertainty): the points' "
+                 "sigma and residuals near a node, grown with its distance to the nearest point (docs/fitsurf.md)")
+      ->group(out);
+  app.add_option("--uncertainty-cell-mm", c.uncertainty_options.cell_mm, "Node spacing of --uncertainty, mm")
+      ->capture_default_str()->group(out)->check(tool::positive_up_to(1000));
   app.add_option("--preview-width-px", c.preview_width_px, "Width of --preview; the height follows the part")
       ->capture_default_str()->check(CLI::Range(400, 8000))->group(out);
 
@@ -216,7 +225,7 @@ Options to_options(const Cli& c) {
   validate(o.fit);
   // Every file output distinct, and only -o on stdout.
   std::set<std::string> paths;
-  for (const std::string* p : {&c.step, &c.iges, &c.mesh, &c.report, &c.residuals, &c.preview, &c.output}) {
+  for (const std::string* p : {&c.step, &c.iges, &c.mesh, &c.report, &c.residuals, &c.preview, &c.uncertainty, &c.output}) {
     if (p->empty() || (p == &c.output && *p == "-")) continue;
     if (*p == "-") throw UsageError("only -o may write to stdout ('-'); give the other outputs file names");
     if (!paths.insert(*p).second) throw UsageError("'" + *p + "' is named for two outputs");
@@ -246,6 +255,34 @@ void write_outputs(const Cli& c, const Options& options, const PointCloud& cloud
   if (!c.residuals.empty()) {
     write_ply(file(c.residuals).stream(), residual_cloud(cloud, result), PlyEncoding::BinaryLittleEndian,
               "fitsurf residuals: residual_mm = signed distance to the surface, weight = robust weight");
+  }
+  if (!c.uncertainty.empty()) {
+    std::vector<Eigen::Vector3d> fitted;
+    std::vector<double> sigma;
+    const PointProperty* ps = cloud.find("sigma_mm");
+    fitted.reserve(result.selection.kept.size());
+    for (std::size_t k : result.selection.kept) {
+      fitted.push_back(cloud.points_mm[k]);
+      if (ps != nullptr) sigma.push_back(ps->values[k]);
+    }
+    UncertaintyOptions uo = c.uncertainty_options;
+    // rho: the net's knot span, the length over which the spline averages the points.
+    const FitResult& fr = result.fit;
+    uo.resolution_mm = std::max(fr.box.length_u_mm() / std::max(1, fr.surface.num_poles_u - fr.surface.degree_u),
+                                fr.box.length_v_mm() / std::max(1, fr.surface.num_poles_v - fr.surface.degree_v));
+    if (result.prefit) uo.residual_floor_mm = std::max(uo.residual_floor_mm, result.prefit->loo_rms_mm);
+    UncertaintySummary sum;
+    const UncertaintyGrid grid = surface_uncertainty(fitted, result.fit.residual_mm, result.fit.weight, sigma, uo, &sum);
+    const auto mm = [](double v) {
+      char t[32];
+      std::snprintf(t, sizeof t, "%.4f", v);
+      return std::string(t);
+    };
+    log::info("uncertainty: height sigma " + mm(sum.min_mm) + " .. " + mm(sum.max_mm) + " mm (median " + mm(sum.median_mm) +
+              ", p95 " + mm(sum.p95_mm) + ") on " + std::to_string(grid.nx) + " x " + std::to_string(grid.ny) +
+              " nodes; point spacing " + mm(sum.spacing_mm) + " mm, surface resolution " + mm(sum.resolution_mm) + " mm" +
+              (ps == nullptr ? "; the cloud has no sigma_mm: residuals only" : ""));
+    write_uncertainty_grid(file(c.uncertainty).stream(), grid);
   }
   if (!c.preview.empty()) {
     std::vector<Eigen::Vector3d> fitted;

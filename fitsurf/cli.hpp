@@ -9,6 +9,7 @@
 #include <CLI/CLI.hpp>
 
 #include "fitsurf/fitsurf.hpp"
+#include "fitsurf/uncertainty.hpp"
 #include "formats/point_cloud.hpp"
 
 namespace photomill::fitsurf {
@@ -18,6 +19,8 @@ struct Cli {
   std::string input = "-";
   std::string output = "-";      // surface text
   std::string step, iges, mesh, report, residuals, preview;  // empty: not written
+  std::string uncertainty;       // --uncertainty: the height's sigma grid (empty: not written)
+  UncertaintyOptions uncertainty_options;
   int preview_width_px = 1200;
   double mesh_step_mm = 1.0;
   std::string net = "30x30";

@@ -12,6 +12,7 @@
 
 #include "fitsurf/test_shapes.hpp"
 #include "formats/point_cloud.hpp"
+#include "formats/uncertainty.hpp"
 #include "tests/option_check.hpp"
 #include "tests/run_tool.hpp"
 #include "tests/temp_dir.hpp"
@@ -316,6 +317,37 @@ INSTANTIATE_TEST_SUITE_P(
         OptionCase{"max_poles", on({"--tolerance", "0.001", "--max-poles", "8"}), 1, "", nullptr},
         bad("max_poles_below_degree", {"--tolerance", "0.05", "--max-poles", "3"}, "--max-poles")),
     [](const auto& info) { return std::string(info.param.name); });
+
+}  // namespace
+}  // namespace photomill::fitsurf
+
+namespace photomill::fitsurf {
+namespace {
+
+// --uncertainty writes the height's sigma grid (formats/uncertainty.hpp) at --uncertainty-cell-mm.
+TEST(FitsurfUncertaintyOption, WritesTheGridAtItsCell) {
+  TempDir dir;
+  const std::string grid = (dir.path() / "u.csv").string(), surface = (dir.path() / "s.txt").string();
+  const ToolResult r = run_tool("fitsurf", {"--uncertainty", grid, "--uncertainty-cell-mm", "2", "-o", surface, "-"}, dome());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("uncertainty: height sigma"), std::string::npos) << r.err;
+  std::istringstream in(photomill::test::read_file(grid));
+  const UncertaintyGrid g = read_uncertainty_grid(in, grid);
+  EXPECT_DOUBLE_EQ(g.step_mm, 2);
+  EXPECT_GT(g.nx * g.ny, 100u);
+  const double top = *std::max_element(g.sigma_mm.begin(), g.sigma_mm.end());
+  EXPECT_GT(top, 0);
+  EXPECT_LT(top, 1);  // 0.01 mm noise, 1500 points
+}
+
+TEST(FitsurfUncertaintyOption, RefusesABadCellAndStdout) {
+  const ToolResult zero = run_tool("fitsurf", {"--uncertainty", "u.csv", "--uncertainty-cell-mm", "0", "-"}, dome());
+  EXPECT_EQ(zero.exit_code, 2);
+  EXPECT_NE(zero.err.find("--uncertainty-cell-mm"), std::string::npos) << zero.err;
+  const ToolResult out = run_tool("fitsurf", {"--uncertainty", "-", "-o", "s.txt", "-"}, dome());
+  EXPECT_EQ(out.exit_code, 2);
+  EXPECT_NE(out.err.find("only -o may write to stdout"), std::string::npos) << out.err;
+}
 
 }  // namespace
 }  // namespace photomill::fitsurf

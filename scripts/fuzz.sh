@@ -11,7 +11,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-60}
 shift || true
-all=(observations control_points tracks poses scale_bars point_cloud surface cl_data camera_yaml features step iges known_poses json)
+all=(observations control_points tracks poses scale_bars point_cloud surface cl_data camera_yaml features step iges known_poses json uncertainty_grid)
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=("${all[@]}")
 

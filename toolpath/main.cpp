@@ -1,6 +1,7 @@
 // toolpath: iso-parametric ball-end finishing path on a B-spline surface (the paper's section 5).
 // Reads a surface (photomill text, STEP or IGES; a file or '-'), writes CL data (APT or CSV) to
 // stdout or -o; optionally a PNG preview, a JSON report and a z-map verification.
+#include <fstream>
 #include <map>
 #include <optional>
 #include <sstream>
@@ -10,11 +11,13 @@
 #include "formats/log.hpp"
 #include "formats/option_checks.hpp"
 #include "formats/tool.hpp"
+#include "formats/uncertainty.hpp"
 #include "toolpath/input.hpp"
 #include "toolpath/part.hpp"
 #include "toolpath/preview.hpp"
 #include "toolpath/report.hpp"
 #include "toolpath/toolpath.hpp"
+#include "toolpath/uncertain_stock.hpp"
 #include "toolpath/zmap.hpp"
 
 using namespace photomill;
@@ -105,6 +108,8 @@ int main(int argc, char** argv) {
   PartToolpathOptions part_options;
   double mesh_tol_mm = 0.0002;
   ZmapOptions zmap;
+  std::string stock_file;
+  std::optional<double> stock_k;
   return tool::run(
       argc, argv,
       {"toolpath", "ball-end finishing tool path (CL data) on a B-spline surface: iso-parametric passes, chord and scallop control, gouge-free",
@@ -123,6 +128,12 @@ int main(int argc, char** argv) {
         app.add_option("--chord-tol-mm", o.chord_tol_mm, "Chord tolerance e between CC points, below --scallop-mm")->capture_default_str()->check(tool::positive_up_to(10));
         app.add_option("--gouge-tol-mm", o.gouge_tol_mm, "Deepest a straight move may dip into the surface")->capture_default_str()->check(tool::positive_up_to(10));
         app.add_option("--stock-mm", o.stock_mm, "Allowance left on the surface (roughing)")->capture_default_str()->check(tool::non_negative_up_to(100));
+        app.add_option("--stock-uncertainty", stock_file,
+                       "Uncertainty-aware stock: fitsurf --uncertainty's grid of the surface's height sigma; the path is "
+                       "raised to stay above the surface offset up by --stock-sigma-k sigma, so a finishing pass leaves "
+                       "material where the surface was poorly measured (docs/toolpath.md)");
+        app.add_option("--stock-sigma-k", stock_k, "Sigmas of extra stock with --stock-uncertainty (default 2)")
+            ->check(tool::non_negative_up_to(100));
         app.add_option("--direction", direction, "Passes run along u (v constant) or v")->check(CLI::IsMember({"u", "v"}))->capture_default_str();
         app.add_option("--pattern", pattern, "zigzag: alternate directions, linked; oneway: retract after every pass")
             ->check(CLI::IsMember({"zigzag", "oneway"}))->capture_default_str();
@@ -153,27 +164,47 @@ int main(int argc, char** argv) {
         o.direction = direction == "u" ? PassDirection::U : PassDirection::V;
         o.pattern = pattern == "zigzag" ? Pattern::ZigZag : Pattern::OneWay;
         validate(o);
+        if (stock_k && stock_file.empty()) throw UsageError("--stock-sigma-k needs --stock-uncertainty FILE");
         if (all_faces) {
+          if (!stock_file.empty()) throw UsageError("--stock-uncertainty is not available with --all-faces");
           if (face) throw UsageError("--face and --all-faces exclude each other");
           if (!preview.empty()) throw UsageError("--preview is not available with --all-faces yet");
           if (!(mesh_tol_mm > 0) || !(mesh_tol_mm < o.gouge_tol_mm)) throw UsageError("--mesh-tol-mm must be > 0 and below --gouge-tol-mm");
           return run_part(input, output, format, report, o, part_options, mesh_tol_mm,
                           verify ? std::optional<double>(zmap.cell_mm) : std::nullopt);
         }
+        std::optional<UncertaintyGrid> stock_grid;
+        if (!stock_file.empty()) {
+          std::ifstream f(stock_file, std::ios::binary);
+          if (!f) throw InputError(stock_file, 0, "cannot open");
+          stock_grid = read_uncertainty_grid(f, stock_file);
+        }
         const LoadedSurface in = load_surface(input, face);
         log::debug("surface: degrees " + std::to_string(in.surface.degree_u) + " x " + std::to_string(in.surface.degree_v) +
                    ", " + std::to_string(in.surface.num_poles_u) + " x " + std::to_string(in.surface.num_poles_v) +
                    " poles, face " + std::to_string(in.face) + " of " + std::to_string(in.faces));
         std::optional<log::Step> step(std::in_place, "planning the passes and stepping along them");
-        const ToolpathResult result = generate_toolpath(in.surface, o);
+        // Uncertainty-aware stock: the path is made on the surface offset up by k sigma.
+        std::optional<UncertainStockStats> stock;
+        std::optional<BSplineSurface> offset;
+        if (stock_grid) {
+          stock.emplace();
+          offset = offset_by_uncertainty(in.surface, *stock_grid, stock_k.value_or(2), o.scallop_mm, &*stock);
+          log::info("uncertainty-aware stock (" + fixed(stock->k, 2) + " sigma, sigma up to " + fixed(stock->sigma_max_mm, 4) +
+                    " mm): the surface raised by up to " + fixed(stock->max_mm, 4) + " mm, " + fixed(stock->mean_mm, 4) +
+                    " mm on average; more than the scallop height over " + fixed(stock->area_mm2, 0) + " mm^2");
+        }
+        const BSplineSurface& machined = offset ? *offset : in.surface;
+        const ToolpathResult result = generate_toolpath(machined, o);
         std::optional<ZmapResult> checked;
         if (verify) {
           step.emplace("verifying the path on a z-map");
           zmap.tool_radius_mm = o.tool_radius_mm, zmap.stock_mm = o.stock_mm, zmap.threads = o.threads;
-          checked = simulate_zmap(in.surface, result.cl, zmap);
+          checked = simulate_zmap(machined, result.cl, zmap);
         }
         step.reset();
-        const ReportContext ctx{input, in.face, in.faces, &o, &result, checked ? &*checked : nullptr, direction, pattern};
+        const ReportContext ctx{input, in.face, in.faces, &o, &result, checked ? &*checked : nullptr, direction, pattern,
+                                stock ? &*stock : nullptr, stock_file};
         const auto lines = summary_lines(ctx);
         for (std::size_t k = 0; k < lines.size(); ++k) (k == 1 && !result.gouges.empty() ? log::warn : log::info)(lines[k]);
 
@@ -181,7 +212,9 @@ int main(int argc, char** argv) {
         (format == "csv" ? write_cl_csv : write_cl_apt)(cl_out.stream(), result.cl);
         std::optional<tool::OutputFile> png_out, report_out;
         if (!preview.empty()) {
-          const auto png = render_preview_png(in.surface, result);
+          PreviewOptions po;
+          if (stock_grid) po.stock = &*stock_grid, po.stock_k = stock->k, po.stock_threshold_mm = o.scallop_mm;
+          const auto png = render_preview_png(machined, result, po);
           png_out.emplace(preview);
           png_out->stream().write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
         }

@@ -2,6 +2,7 @@
 // the option parses and has its documented effect (docs/toolpath.md, --help), and a value out of
 // its range exits 2 naming the option.
 #include <cmath>
+#include <fstream>
 #include <functional>
 #include <sstream>
 #include <string>
@@ -295,6 +296,44 @@ INSTANTIATE_TEST_SUITE_P(
                    [](const Outcome& r) { EXPECT_EQ(r.r.out, clpost_run({}).r.out); }},  // straight lines: no arc
         bad("clpost_arc_tol_mm_zero", cp({"--arc-tol-mm", "0"}), "--arc-tol-mm")),
     [](const auto& info) { return std::string(info.param.name); });
+
+// --stock-uncertainty and --stock-sigma-k: a uniform sigma of 0.25 mm over the ridge raises the
+// whole surface, and so the path and its safe plane, by k sigma; the report says so.
+TEST(ToolpathStockOption, RaisesThePathByKSigma) {
+  TempDir dir;
+  const auto grid = dir.path() / "u.csv";
+  {
+    std::ofstream f(grid);
+    f << "x_mm,y_mm,sigma_mm\n";
+    for (int j = -40; j <= 40; j += 2) {
+      for (int i = -40; i <= 40; i += 2) f << i << "," << j << ",0.25\n";
+    }
+  }
+  const Outcome r = toolpath_run({"--stock-uncertainty", grid.string(), "--stock-sigma-k", "2"});
+  ASSERT_EQ(r.r.exit_code, 0) << r.r.err;
+  EXPECT_NE(r.r.err.find("uncertainty-aware stock (2.00 sigma"), std::string::npos) << r.r.err;
+  EXPECT_DOUBLE_EQ(json_number(r.report, "k", "uncertainty_stock"), 2);
+  EXPECT_NEAR(json_number(r.report, "max_mm", "uncertainty_stock"), 0.5, 1e-12);
+  EXPECT_NEAR(safe_z(r) - safe_z(toolpath_run({})), 0.5, 0.01);
+  // The default k is 2; without the option the report's entry is null.
+  const Outcome d = toolpath_run({"--stock-uncertainty", grid.string()});
+  EXPECT_NEAR(json_number(d.report, "max_mm", "uncertainty_stock"), 0.5, 1e-12);
+  EXPECT_NE(toolpath_run({}).report.find("\"uncertainty_stock\":null"), std::string::npos);
+}
+
+TEST(ToolpathStockOption, BadValuesAndFilesAreRefused) {
+  EXPECT_EQ(toolpath_run({"--stock-sigma-k", "2"}).r.exit_code, 2);  // without a grid
+  const Outcome neg = toolpath_run({"--stock-uncertainty", "u.csv", "--stock-sigma-k", "-1"});
+  EXPECT_EQ(neg.r.exit_code, 2);
+  EXPECT_NE(neg.r.err.find("--stock-sigma-k"), std::string::npos) << neg.r.err;
+  TempDir dir;
+  const auto grid = dir.path() / "bad.csv";
+  std::ofstream(grid) << "x_mm,y_mm,sigma_mm\n0,0,0.1\n1,0,-0.1\n";
+  const Outcome bad = toolpath_run({"--stock-uncertainty", grid.string()});
+  EXPECT_EQ(bad.r.exit_code, 1);
+  EXPECT_NE(bad.r.err.find("bad.csv:3: sigma_mm must be finite and not negative"), std::string::npos) << bad.r.err;
+  EXPECT_EQ(count_of(bad.r.err, "\n"), 1u) << bad.r.err;
+}
 
 }  // namespace
 }  // namespace photomill::toolpath

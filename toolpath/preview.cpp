@@ -129,6 +129,35 @@ std::vector<std::uint8_t> render_preview_png(const BSplineSurface& surface, cons
       if (p.gouge) cv::circle(img, px(p.tip), 4 * 16, bgr(kGougeBgr), 1, cv::LINE_AA, 4);
     }
   }
+  // Uncertainty-aware stock: orange over the path where k sigma exceeds the threshold, in three
+  // shades (above the threshold, above half the 95th percentile of k sigma, above that percentile),
+  // blended so the passes show through.
+  double stock_max_mm = 0, stock_ref_mm = 0;
+  if (o.stock != nullptr && o.stock_k > 0 && !o.stock->sigma_mm.empty()) {
+    const UncertaintyGrid& g = *o.stock;
+    std::vector<double> extra;
+    for (double sg : g.sigma_mm) extra.push_back(o.stock_k * sg), stock_max_mm = std::max(stock_max_mm, extra.back());
+    std::vector<double> sorted = extra;
+    const auto at95 = sorted.begin() + static_cast<long>(0.95 * static_cast<double>(sorted.size() - 1));
+    std::nth_element(sorted.begin(), at95, sorted.end());
+    stock_ref_mm = std::max(*at95, o.stock_threshold_mm);
+    const double hs = 0.5 * g.step_mm;
+    const double level_mm[3] = {o.stock_threshold_mm, std::max(o.stock_threshold_mm, 0.5 * stock_ref_mm), stock_ref_mm};
+    for (int level = 0; level < 3; ++level) {
+      cv::Mat overlay = img.clone();
+      for (std::size_t j = 0; j < g.ny; ++j) {
+        for (std::size_t i = 0; i < g.nx; ++i) {
+          if (!(extra[j * g.nx + i] > level_mm[level])) continue;
+          const double x = g.x0_mm + static_cast<double>(i) * g.step_mm, y = g.y0_mm + static_cast<double>(j) * g.step_mm;
+          const cv::Point quad[4] = {px(Eigen::Vector3d(x - hs, y - hs, 0)), px(Eigen::Vector3d(x + hs, y - hs, 0)),
+                                     px(Eigen::Vector3d(x + hs, y + hs, 0)), px(Eigen::Vector3d(x - hs, y + hs, 0))};
+          cv::fillConvexPoly(overlay, quad, 4, bgr(kStockBgr), cv::LINE_8, 4);
+        }
+      }
+      cv::addWeighted(img, 0.75, overlay, 0.25, 0, img);
+    }
+  }
+
   // Start and end of the cut: the first and last feed moves.
   const auto first = std::find_if(moves.begin(), moves.end(), [](const ClMove& m) { return m.kind == ClMove::Kind::Feed; });
   const auto last = std::find_if(moves.rbegin(), moves.rend(), [](const ClMove& m) { return m.kind == ClMove::Kind::Feed; });
@@ -145,7 +174,13 @@ std::vector<std::uint8_t> render_preview_png(const BSplineSurface& surface, cons
   const std::string text = std::to_string(path.stats.passes) + " passes, " + std::to_string(path.stats.cl_points) +
                            " CL points, " + plot::number(std::round(path.stats.feed_length_mm), 12) +
                            " mm feed. Colour: tool tip height; red dashes: rapids; magenta rings: gouges (" +
-                           std::to_string(path.stats.gouge_points) + ")";
+                           std::to_string(path.stats.gouge_points) + ")" +
+                           (o.stock != nullptr ? "; orange: stock " + plot::number(o.stock_k, 3) +
+                                                           " sigma > " + plot::number(o.stock_threshold_mm, 3) +
+                                                           ", > " + plot::number(0.5 * stock_ref_mm, 3) + ", > " +
+                                                           plot::number(stock_ref_mm, 3) + " (p95), max " +
+                                                           plot::number(stock_max_mm, 3) + " mm"
+                                                     : std::string());
   const double font = std::clamp(0.45 * width / 1100.0, 0.3, 0.6);
   cv::putText(img, text, cv::Point(kLeft, height - 10), cv::FONT_HERSHEY_SIMPLEX, font, plot::kInk, 1, cv::LINE_AA);
   std::vector<std::uint8_t> png;

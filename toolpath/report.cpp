@@ -99,6 +99,22 @@ void write_report(std::ostream& out, const ReportContext& c) {
   }
   j.end_array();
   j.end_object();
+  // Uncertainty-aware stock (uncertain_stock.hpp); null when off.
+  j.key("uncertainty_stock");
+  if (c.stock != nullptr) {
+    const UncertainStockStats& u = *c.stock;
+    j.begin_object();
+    j.field("file", c.stock_file);
+    j.field("k", u.k);
+    j.field("sigma_max_mm", u.sigma_max_mm);
+    j.field("max_mm", u.max_mm);
+    j.field("mean_mm", u.mean_mm);
+    j.field("area_mm2", u.area_mm2);
+    j.field("area_threshold_mm", u.threshold_mm);
+    j.end_object();
+  } else {
+    j.null();
+  }
   if (c.verify) {
     const ZmapResult& z = *c.verify;
     j.key("verify").begin_object();

@@ -9,6 +9,7 @@
 
 #include "toolpath/part.hpp"
 #include "toolpath/toolpath.hpp"
+#include "toolpath/uncertain_stock.hpp"
 #include "toolpath/zmap.hpp"
 
 namespace photomill::toolpath {
@@ -22,6 +23,8 @@ struct ReportContext {
   const ZmapResult* verify = nullptr;  // null unless --verify
   std::string direction;             // "u" or "v"
   std::string pattern;               // "zigzag" or "oneway"
+  const UncertainStockStats* stock = nullptr;  // null unless --stock-uncertainty
+  std::string stock_file;            // --stock-uncertainty's file
 };
 
 void write_report(std::ostream& out, const ReportContext& context);

@@ -14,6 +14,7 @@
 #include "formats/point_cloud.hpp"
 #include "formats/surface.hpp"
 #include "formats/tables.hpp"
+#include "formats/uncertainty.hpp"
 #include "triangulate/cli.hpp"
 
 namespace photomill::fuzz {
@@ -50,6 +51,16 @@ void control_points(const std::string& d) { from_stream<read_control_points>(d);
 void tracks(const std::string& d) { from_stream<read_tracks>(d); }
 void poses(const std::string& d) { from_stream<read_poses>(d); }
 void scale_bars(const std::string& d) { from_stream<read_scale_bars>(d); }
+// The grid is also sampled, as toolpath does, inside, between and beyond its nodes.
+void uncertainty_grid(const std::string& d) {
+  std::istringstream in(d);
+  const UncertaintyGrid g = read_uncertainty_grid(in, "fuzz");
+  const double w = g.step_mm * static_cast<double>(g.nx), h = g.step_mm * static_cast<double>(g.ny);
+  for (double t : {-1.0, 0.0, 0.37, 1.0, 2.0}) {
+    (void)g.sample(g.x0_mm + t * w, g.y0_mm + t * h);
+    (void)g.max_within(g.x0_mm + t * w, g.y0_mm + (1 - t) * h, 3 * g.step_mm);
+  }
+}
 void point_cloud(const std::string& d) {
   std::istringstream in(d);
   read_point_cloud(in, "fuzz");
@@ -84,7 +95,7 @@ const std::vector<Target>& targets() {
       {"poses", poses},               {"scale_bars", scale_bars},         {"point_cloud", point_cloud},
       {"surface", surface},           {"cl_data", cl_data},               {"camera_yaml", camera_yaml},
       {"features", features},         {"step", step},                     {"iges", iges},
-      {"known_poses", known_poses},   {"json", json},
+      {"known_poses", known_poses},   {"json", json}, {"uncertainty_grid", uncertainty_grid},
   };
   return all;
 }
