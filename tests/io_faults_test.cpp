@@ -5,7 +5,9 @@
 //  - EIO on an input: exit 1, one line on stderr naming the file (and the line of a text file)
 //    and the error, every previous output byte-identical, no file left behind;
 //  - ENOSPC on an output (second outputs included: --report, --poses, --step, ...): exit 1, one
-//    line naming that output, every previous output byte-identical, no temporary left.
+//    line naming that output, every previous output byte-identical, no temporary left;
+//  - EIO from fsync of an output (formats/tool.cpp syncs each temporary before its rename): the
+//    same.
 // The same runs without a fault write every output (so the fixtures are valid inputs and every
 // fault below is reached); the shim's log says that each fault was injected. Under AddressSanitizer
 // the shim is not first in the library list: ASAN_OPTIONS gets verify_asan_link_order=0.
@@ -203,10 +205,11 @@ struct Fault {
   std::string file;  // the input whose reads fail, or the output whose writes fail
   bool write = false;
   bool text = false;  // a text input: the message names the line
+  bool sync = false;  // an output whose fsync fails (write is true too)
 };
 
 void PrintTo(const Fault& f, std::ostream* os) {
-  *os << f.run.binary << " " << (f.write ? "ENOSPC writing " : "EIO reading ") << f.file;
+  *os << f.run.binary << " " << (f.sync ? "EIO syncing " : f.write ? "ENOSPC writing " : "EIO reading ") << f.file;
 }
 
 std::vector<Fault> faults() {
@@ -215,6 +218,7 @@ std::vector<Fault> faults() {
     for (const auto& f : run.text_inputs) out.push_back({run, f, false, true});
     for (const auto& f : run.binary_inputs) out.push_back({run, f, false, false});
     for (const auto& f : run.outputs) out.push_back({run, f, true, false});
+    for (const auto& f : run.outputs) out.push_back({run, f, true, false, true});
   }
   return out;
 }
@@ -227,15 +231,15 @@ TEST_P(IoFault, FailsNamingTheFileAndLeavesEveryOutputAsItWas) {
   const auto before = contents(folder.dir.path());
   // Standard input is the file run_tool names "stdin".
   const bool from_stdin = !f.write && f.file == f.run.stdin_file;
-  const ToolResult r = run_with(f.run, folder, {{f.write ? "PHOTOMILL_FAULT_WRITE" : "PHOTOMILL_FAULT_READ",
-                                                 from_stdin ? "stdin" : base_name(f.file)}});
+  const char* variable = f.sync ? "PHOTOMILL_FAULT_FSYNC" : f.write ? "PHOTOMILL_FAULT_WRITE" : "PHOTOMILL_FAULT_READ";
+  const ToolResult r = run_with(f.run, folder, {{variable, from_stdin ? "stdin" : base_name(f.file)}});
   ASSERT_TRUE(fs::exists(folder.log())) << "the fault was never injected: exit " << r.exit_code << ", " << r.err;
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_EQ(r.out, "");
   ASSERT_FALSE(r.err.empty());
   EXPECT_EQ(r.err.find('\n'), r.err.size() - 1) << "more than one line on stderr:\n" << r.err;
   const std::string line = r.err.substr(0, r.err.find('\n'));
-  const std::string expected_error = f.write ? "No space left on device" : "Input/output error";
+  const std::string expected_error = f.write && !f.sync ? "No space left on device" : "Input/output error";
   // The message names the file as the user gave it (for a file in a folder given on the command
   // line, its path), the line of a text input, and the system's reason.
   const std::string shown = from_stdin ? "<stdin>" : f.file;
@@ -254,7 +258,8 @@ TEST_P(IoFault, FailsNamingTheFileAndLeavesEveryOutputAsItWas) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Runs, IoFault, ::testing::ValuesIn(faults()), [](const ::testing::TestParamInfo<Fault>& info) {
-  return info.param.run.name + (info.param.write ? "_ENOSPC_" : "_EIO_") + ident(info.param.file);
+  return info.param.run.name + (info.param.sync ? "_EIO_fsync_" : info.param.write ? "_ENOSPC_" : "_EIO_") +
+         ident(info.param.file);
 });
 
 }  // namespace
