@@ -105,7 +105,31 @@ void discard_staged() {
   g_staged.clear();
 }
 
-void sync_folder_of(const std::string& target);  // below, with sync_file
+// Durability before the rename (the pattern of SQLite and of git's core.fsync): the temporary's
+// data reach the disk before its name replaces the previous output, so that a crash or a power
+// cut after the rename cannot leave an output of zero length or of stale blocks where the
+// previous complete file was (ext4 with delalloc, XFS). fsync(2) on the temporary; its failure
+// (EIO from the device, a quota written back) fails the output, naming it.
+void sync_file(const std::string& temp, const std::string& name) {
+  const int fd = ::open(temp.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw InputError(name, 0, std::string("cannot sync: ") + std::strerror(errno));
+  const int rc = ::fsync(fd);
+  const int error = errno;
+  ::close(fd);
+  if (rc != 0) throw InputError(name, 0, std::string("write failed: ") + std::strerror(error));
+}
+
+// After the rename, the folder's entry itself is made durable (fsync of the directory). Best
+// effort: the output is complete and in place either way (a crash before the entry reaches the
+// disk leaves the previous complete output), and some file systems refuse fsync on a directory.
+void sync_folder_of(const std::string& target) {
+  std::string folder = std::filesystem::path(target).parent_path().string();
+  if (folder.empty()) folder = ".";
+  const int fd = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return;
+  (void)::fsync(fd);
+  ::close(fd);
+}
 
 // Renames every staged output onto its target, in the order committed. A rename that fails stops
 // the run: the outputs not yet renamed keep their previous content.
@@ -492,32 +516,6 @@ namespace {
 
 // Copies the file `from` into `out` (flushed), true when every byte was written. (operator<< of an
 // empty streambuf would set failbit, so the copy is a loop.)
-// Durability before the rename (the pattern of SQLite and of git's core.fsync): the temporary's
-// data reach the disk before its name replaces the previous output, so that a crash or a power
-// cut after the rename cannot leave an output of zero length or of stale blocks where the
-// previous complete file was (ext4 with delalloc, XFS). fsync(2) on the temporary; its failure
-// (EIO from the device, a quota written back) fails the output, naming it.
-void sync_file(const std::string& temp, const std::string& name) {
-  const int fd = ::open(temp.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) throw InputError(name, 0, std::string("cannot sync: ") + std::strerror(errno));
-  const int rc = ::fsync(fd);
-  const int error = errno;
-  ::close(fd);
-  if (rc != 0) throw InputError(name, 0, std::string("write failed: ") + std::strerror(error));
-}
-
-// After the rename, the folder's entry itself is made durable (fsync of the directory). Best
-// effort: the output is complete and in place either way (a crash before the entry reaches the
-// disk leaves the previous complete output), and some file systems refuse fsync on a directory.
-void sync_folder_of(const std::string& target) {
-  std::string folder = std::filesystem::path(target).parent_path().string();
-  if (folder.empty()) folder = ".";
-  const int fd = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return;
-  (void)::fsync(fd);
-  ::close(fd);
-}
-
 bool copy_contents(const std::string& from, std::ostream& out) {
   std::ifstream in(from, std::ios::binary);
   if (!in) return false;
