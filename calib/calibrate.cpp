@@ -11,13 +11,13 @@
 #include <unordered_map>
 
 #include <Eigen/Geometry>
-#include <Eigen/SVD>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "calib/init.hpp"
 #include "formats/error.hpp"
+#include "geometry/linear_algebra.hpp"
 #include "formats/image.hpp"
 #include "formats/image_decode.hpp"
 
@@ -84,7 +84,7 @@ Eigen::Isometry3d plane_from_world(const std::vector<View>& views) {
   c /= static_cast<double>(pts.size());
   Eigen::MatrixXd A(pts.size(), 3);
   for (std::size_t i = 0; i < pts.size(); ++i) A.row(static_cast<Eigen::Index>(i)) = (pts[i] - c).transpose();
-  Eigen::Matrix3d B = Eigen::JacobiSVD<Eigen::MatrixXd>(A, Eigen::ComputeThinV).matrixV();
+  Eigen::Matrix3d B = geometry::svd(A, Eigen::ComputeThinV).V;
   if (B.determinant() < 0) B.col(2) *= -1;
   T.linear() = B.transpose();
   T.translation() = -B.transpose() * c;
@@ -101,7 +101,7 @@ bool spans_plane(const View& v) {
   c /= static_cast<double>(p.size());
   Eigen::MatrixXd A(p.size(), 2);
   for (std::size_t i = 0; i < p.size(); ++i) A.row(static_cast<Eigen::Index>(i)) = (p[i] - c).head<2>().transpose();
-  const Eigen::Vector2d s = Eigen::JacobiSVD<Eigen::MatrixXd>(A).singularValues();
+  const Eigen::Vector2d s = geometry::singular_values(A);
   return s(0) > 0 && s(1) / s(0) > 1e-3;
 }
 

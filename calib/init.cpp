@@ -7,10 +7,10 @@
 
 #include <Eigen/Geometry>
 #include <Eigen/QR>
-#include <Eigen/SVD>
 #include <opencv2/calib3d.hpp>
 
 #include "formats/error.hpp"
+#include "geometry/linear_algebra.hpp"
 
 namespace photomill::calib {
 namespace {
@@ -79,7 +79,7 @@ double flatness(const std::vector<Eigen::Vector3d>& points) {
   mean /= static_cast<double>(points.size());
   Eigen::MatrixXd A(points.size(), 3);
   for (std::size_t i = 0; i < points.size(); ++i) A.row(static_cast<Eigen::Index>(i)) = (points[i] - mean).transpose();
-  const Eigen::Vector3d s = Eigen::JacobiSVD<Eigen::MatrixXd>(A).singularValues();
+  const Eigen::Vector3d s = geometry::singular_values(A);
   return s(0) > 0 ? s(2) / s(0) : 0;
 }
 
@@ -149,8 +149,7 @@ DltCamera dlt_camera(const std::vector<Eigen::Vector3d>& world, const std::vecto
     A.block<1, 4>(r + 1, 0) = X.transpose();
     A.block<1, 4>(r + 1, 8) = -x.x() * X.transpose();
   }
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(A, Eigen::ComputeFullV);
-  const Eigen::VectorXd p = svd.matrixV().col(11);
+  const Eigen::VectorXd p = geometry::svd(A, Eigen::ComputeFullV).V.col(11);
   Eigen::Matrix<double, 3, 4> Pn;
   Pn << p.segment<4>(0).transpose(), p.segment<4>(4).transpose(), p.segment<4>(8).transpose();
   DltCamera cam;

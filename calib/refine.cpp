@@ -11,6 +11,7 @@
 
 #include "calib/init.hpp"
 #include "formats/error.hpp"
+#include "geometry/linear_algebra.hpp"
 
 namespace photomill::calib {
 namespace {
@@ -404,7 +405,7 @@ void add_projection_sigma(const ModelOptions& model, const Parameters& p, const 
       RtJ += ray.R.transpose() * ray.J;
     }
   }
-  const Eigen::MatrixXd A = RtR.completeOrthogonalDecomposition().solve(RtJ);
+  const Eigen::MatrixXd A = geometry::solve_least_norm(RtR, RtJ);
   auto at = [&](double x, double y) { return projection_sigma(ray_jacobians(model, p, cols, {x, y}), A, cov); };
   u.projection_sigma_centre_px = at(w / 2, h / 2).sigma_px;
   u.projection_sigma_edges_px = 0;
@@ -456,7 +457,7 @@ Uncertainty estimate_uncertainty(const std::vector<View>& views, const ModelOpti
       Acv += j.camera.transpose() * j.pose;
       Avv += j.pose.transpose() * j.pose;
     }
-    S -= Acv * Avv.completeOrthogonalDecomposition().pseudoInverse() * Acv.transpose();
+    S -= Acv * geometry::pseudo_inverse(Avv) * Acv.transpose();
   }
   Uncertainty u;
   const long n = static_cast<long>(nc) + static_cast<long>(kPose * views.size());

@@ -4,10 +4,11 @@
 #include <algorithm>
 #include <cmath>
 
-#include <Eigen/SVD>
+#include <Eigen/Core>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 
+#include "geometry/linear_algebra.hpp"
 #include "triangulate/residuals.hpp"
 
 namespace photomill::triangulate {
@@ -19,10 +20,9 @@ bool collinear_impl(const std::vector<Eigen::Matrix<double, N, 1>>& points, doub
   Eigen::Matrix<double, N, 1> c = Eigen::Matrix<double, N, 1>::Zero();
   for (const auto& p : points) c += p;
   c /= static_cast<double>(points.size());
-  Eigen::Matrix<double, Eigen::Dynamic, N> A(static_cast<Eigen::Index>(points.size()), N);
+  Eigen::MatrixXd A(static_cast<Eigen::Index>(points.size()), N);
   for (std::size_t i = 0; i < points.size(); ++i) A.row(static_cast<Eigen::Index>(i)) = (points[i] - c).transpose();
-  const Eigen::JacobiSVD<Eigen::Matrix<double, Eigen::Dynamic, N>> svd(A);
-  const auto s = svd.singularValues();
+  const Eigen::VectorXd s = geometry::singular_values(A);
   return !(s(1) > tolerance * s(0));
 }
 
@@ -131,10 +131,11 @@ double rotation_only_median_residual(const std::vector<Eigen::Vector2d>& xy1, co
     b2.push_back(xy2[i].homogeneous().normalized());
     H += b1.back() * b2.back().transpose();
   }
-  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const geometry::Svd svd = geometry::svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::Matrix3d U = svd.U, V = svd.V;
   Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
-  D(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1 : 1;
-  const Eigen::Matrix3d R = svd.matrixV() * D * svd.matrixU().transpose();
+  D(2, 2) = (V * U.transpose()).determinant() < 0 ? -1 : 1;
+  const Eigen::Matrix3d R = V * D * U.transpose();
   std::vector<double> angles;
   for (std::size_t i = 0; i < b1.size(); ++i) angles.push_back(std::acos(std::clamp((R * b1[i]).dot(b2[i]), -1.0, 1.0)));
   std::nth_element(angles.begin(), angles.begin() + static_cast<std::ptrdiff_t>(angles.size() / 2), angles.end());

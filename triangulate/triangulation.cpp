@@ -7,8 +7,8 @@
 
 #include <ceres/jet.h>
 #include <Eigen/Cholesky>
-#include <Eigen/SVD>
 
+#include "geometry/linear_algebra.hpp"
 #include "geometry/parallel.hpp"
 
 namespace photomill::triangulate {
@@ -64,8 +64,7 @@ std::optional<Eigen::Vector3d> triangulate_linear(const std::vector<PointView>& 
     if (norm > 0) rows /= norm;
     A.block<2, 4>(static_cast<Eigen::Index>(2 * j), 0) = rows;
   }
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(A, Eigen::ComputeFullV);
-  const Eigen::Vector4d Xh = T * svd.matrixV().col(3);
+  const Eigen::Vector4d Xh = T * geometry::svd(A, Eigen::ComputeFullV).V.col(3);
   if (!(std::abs(Xh(3)) > 1e-12 * Xh.head<3>().norm())) return std::nullopt;
   const Eigen::Vector3d X = Xh.head<3>() / Xh(3);
   if (!X.allFinite()) return std::nullopt;
