@@ -7,6 +7,8 @@
 
 #include <Eigen/Core>
 
+#include <CLI/CLI.hpp>
+
 #include "geometry/board.hpp"
 #include "formats/error.hpp"
 #include "formats/text.hpp"

@@ -5,7 +5,9 @@
 #include <string>
 #include <vector>
 
-#include <CLI/CLI.hpp>
+namespace CLI {
+class App;  // CLI11's application (<CLI/CLI.hpp>, included where options are added: a heavy header)
+}  // namespace CLI
 
 #include "calib/calibrate.hpp"
 

@@ -6,6 +6,8 @@
 #include <map>
 #include <memory>
 
+#include <CLI/CLI.hpp>
+
 #include "detect/boards.hpp"
 #include "formats/error.hpp"
 #include "formats/log.hpp"

@@ -7,6 +7,8 @@
 #include <memory>
 #include <set>
 
+#include <CLI/CLI.hpp>
+
 #include "fitsurf/mesh.hpp"
 #include "fitsurf/preview.hpp"
 #include "fitsurf/report.hpp"

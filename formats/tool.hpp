@@ -11,7 +11,9 @@
 #include <utility>
 #include <vector>
 
-#include <CLI/CLI.hpp>
+namespace CLI {
+class App;  // CLI11's application (<CLI/CLI.hpp>, included where options are added: a heavy header)
+}  // namespace CLI
 
 namespace photomill::tool {
 

@@ -1,4 +1,6 @@
 // The tool contract's file handling: atomic outputs, clear input errors.
+#include <CLI/CLI.hpp>
+
 #include "formats/tool.hpp"
 
 #include <sys/stat.h>

@@ -8,6 +8,8 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include <CLI/CLI.hpp>
+
 #include "formats/camera_bounds.hpp"
 #include "formats/error.hpp"
 #include "formats/image.hpp"

@@ -1,5 +1,7 @@
 // report: a job's output folder (Makefile.example's OUT) -> one self-contained HTML page with the
 // stages' headline figures, every picture and every report figure (issue 27).
+#include <CLI/CLI.hpp>
+
 #include "formats/error.hpp"
 #include "formats/tool.hpp"
 #include "report/report.hpp"

@@ -3,6 +3,8 @@
 
 #include <sstream>
 
+#include <CLI/CLI.hpp>
+
 #include "formats/error.hpp"
 #include "formats/text.hpp"
 #include "geometry/board.hpp"

@@ -3,6 +3,8 @@
 #include <optional>
 #include <string>
 
+#include <CLI/CLI.hpp>
+
 #include "formats/log.hpp"
 #include "formats/tables.hpp"
 #include "formats/tool.hpp"

@@ -7,6 +7,8 @@
 #include <iostream>
 #include <map>
 
+#include <CLI/CLI.hpp>
+
 #include "formats/tables.hpp"
 #include "formats/tool.hpp"
 #include "tools/synth/scene.hpp"

@@ -6,6 +6,8 @@
 #include <fstream>
 #include <iostream>
 
+#include <CLI/CLI.hpp>
+
 #include "formats/camera.hpp"
 #include "formats/tool.hpp"
 #include "tools/track_truth.hpp"

@@ -1,4 +1,6 @@
 // Ground truth from synth's scene (see synth_truth.hpp).
+#include <CLI/CLI.hpp>
+
 #include "tools/synth_truth.hpp"
 
 #include <algorithm>

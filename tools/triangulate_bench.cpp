@@ -12,6 +12,8 @@
 #include <random>
 #include <sstream>
 
+#include <CLI/CLI.hpp>
+
 #include "formats/log.hpp"
 #include "formats/tool.hpp"
 #include "triangulate/colmap.hpp"

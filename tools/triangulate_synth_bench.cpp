@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cstdio>
 
+#include <CLI/CLI.hpp>
+
 #include "formats/tool.hpp"
 #include "tools/synth_truth.hpp"
 

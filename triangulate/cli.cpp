@@ -6,6 +6,8 @@
 #include <set>
 #include <sstream>
 
+#include <CLI/CLI.hpp>
+
 #include "formats/camera_bounds.hpp"
 #include "formats/error.hpp"
 #include "formats/option_checks.hpp"

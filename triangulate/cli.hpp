@@ -5,7 +5,9 @@
 #include <optional>
 #include <string>
 
-#include <CLI/CLI.hpp>
+namespace CLI {
+class App;  // CLI11's application (<CLI/CLI.hpp>, included where options are added: a heavy header)
+}  // namespace CLI
 
 #include "triangulate/preview.hpp"
 #include "triangulate/reconstruct.hpp"

@@ -16,6 +16,8 @@
 #include <string>
 #include <vector>
 
+#include <CLI/CLI.hpp>
+
 #include "fitsurf/outline.hpp"
 #include "formats/bspline.hpp"
 #include "formats/camera.hpp"

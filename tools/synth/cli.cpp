@@ -3,6 +3,8 @@
 
 #include <stdexcept>
 
+#include <CLI/CLI.hpp>
+
 #include "formats/error.hpp"
 #include "tools/synth/camera_model.hpp"
 
