@@ -19,11 +19,15 @@
  *   PHOTOMILL_FAULT_FSYNC=NAME     fsync/fdatasync of a file whose name contains NAME fail with EIO.
  *   PHOTOMILL_FAULT_CLOSE=NAME     close of a file whose name contains NAME closes it but returns
  *                                  EIO (as NFS reports a write-back error).
+ *   PHOTOMILL_FAULT_KILL_RENAME=N  the process kills itself with SIGKILL at its N-th rename(2)
+ *                                  (counted from 1), before making it: the outputs renamed
+ *                                  before are new, the others previous. A kill between two
+ *                                  renames, which a kill at a random moment almost never hits.
  *   PHOTOMILL_FAULT_LOG=PATH       appends one line per injected fault ("write ENOSPC NAME"), so
  *                                  a test can tell that the fault was injected at all.
  *
  * Covered calls: read, readv, pread(64), __read_chk, write, writev, pwrite(64), fsync, fdatasync,
- * close. stdio's internal reads and writes (fread, fwrite) do not go through these symbols and
+ * close, rename. stdio's internal reads and writes (fread, fwrite) do not go through these symbols and
  * are not reached: photomill reads and writes its files through file descriptors (open_input,
  * std::fstream). Under AddressSanitizer the shim is not first in the library list:
  * ASAN_OPTIONS=verify_asan_link_order=0 lets the process start. */
@@ -31,6 +35,7 @@
 #include <dlfcn.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -46,6 +51,7 @@ typedef ssize_t (*writev_fn)(int, const struct iovec*, int);
 typedef ssize_t (*pread_fn)(int, void*, size_t, off_t);
 typedef ssize_t (*pwrite_fn)(int, const void*, size_t, off_t);
 typedef int (*int_fd_fn)(int);
+typedef int (*rename_fn)(const char*, const char*);
 
 /* The next definition of a call (libc's, or AddressSanitizer's interceptor). A function pointer
  * copied out of dlsym's object pointer: ISO C has no cast between the two. */
@@ -65,6 +71,7 @@ DEFINE_REAL(pwrite_fn, pwrite)
 DEFINE_REAL(int_fd_fn, fsync)
 DEFINE_REAL(int_fd_fn, fdatasync)
 DEFINE_REAL(int_fd_fn, close)
+DEFINE_REAL(rename_fn, rename)
 
 static long env_long(const char* name, long fallback) {
   const char* v = getenv(name);
@@ -263,4 +270,15 @@ int close(int fd) {
     return -1;
   }
   return rc;
+}
+
+static long g_renames = 0; /* renames so far (PHOTOMILL_FAULT_KILL_RENAME) */
+
+int rename(const char* from, const char* to) {
+  const long kill_at = env_long("PHOTOMILL_FAULT_KILL_RENAME", 0);
+  if (kill_at > 0 && __atomic_add_fetch(&g_renames, 1, __ATOMIC_SEQ_CST) == kill_at) {
+    log_fault("kill before rename", to);
+    raise(SIGKILL);
+  }
+  return real_rename()(from, to);
 }

@@ -48,7 +48,9 @@ constexpr int kKillsPerStage = 5;  // 4 stages: 20 kills
 
 // Starts `args` (args[0] a binary of the build) in `cwd` with PHOTOMILL_RUN_ID=run, stdout and
 // stderr to files in `cwd`; returns the child's pid.
-pid_t start(const std::vector<std::string>& args, const fs::path& cwd, const std::string& run) {
+// `env`: more variables for the child (name, value).
+pid_t start(const std::vector<std::string>& args, const fs::path& cwd, const std::string& run,
+            const std::vector<std::pair<std::string, std::string>>& env = {}) {
   std::fflush(nullptr);  // else the child's freopen writes the parent's pending output again
   const pid_t pid = ::fork();
   if (pid == 0) {
@@ -56,6 +58,7 @@ pid_t start(const std::vector<std::string>& args, const fs::path& cwd, const std
     std::freopen("stdout.txt", "w", stdout);
     std::freopen("stderr.txt", "w", stderr);
     ::setenv("PHOTOMILL_RUN_ID", run.c_str(), 1);
+    for (const auto& [name, value] : env) ::setenv(name.c_str(), value.c_str(), 1);
     std::vector<std::string> a = args;
     a[0] = bin_path(a[0]);
     std::vector<char*> argv;
@@ -116,10 +119,9 @@ protected:
   bool made_in_ = fs::create_directories(dir_.path() / "in");
 };
 
-TEST_F(KillTest, EveryOutputIsPreviousOrCompleteAndAMixIsRefused) {
-  const std::string i = (dir_.path() / "in").string() + "/";
-  ASSERT_EQ(run({"match", i + "observations.csv", "--camera", i + "camera.yaml", "-o", i + "tracks.csv"}, dir_.path(), "setup"), 0);
-  const std::vector<Stage> stages{
+// The four stages (`i`: the input folder, with "/"), each with its outputs and the next stage.
+std::vector<Stage> chain(const std::string& i) {
+  return {
       {"detect",
        {"detect", "--aruco", "DICT_4X4_100", "--features", "feat", i + "part_00.jpg", "-o", "obs.csv"},
        {"obs.csv", "feat/part_00.jpg.feat"},
@@ -138,6 +140,12 @@ TEST_F(KillTest, EveryOutputIsPreviousOrCompleteAndAMixIsRefused) {
        {"path.cl", "toolpath.json"},
        {"report", ".", "-o", "report.html"}},
   };
+}
+
+TEST_F(KillTest, EveryOutputIsPreviousOrCompleteAndAMixIsRefused) {
+  const std::string i = (dir_.path() / "in").string() + "/";
+  ASSERT_EQ(run({"match", i + "observations.csv", "--camera", i + "camera.yaml", "-o", i + "tracks.csv"}, dir_.path(), "setup"), 0);
+  const std::vector<Stage> stages = chain(i);
   std::mt19937 rng(25);
   int kills = 0, mixes = 0;
   for (const Stage& s : stages) {
@@ -203,6 +211,58 @@ TEST_F(KillTest, EveryOutputIsPreviousOrCompleteAndAMixIsRefused) {
   }
   EXPECT_EQ(kills, 20);
   std::printf("%d kills, %d left a mix of two runs\n", kills, mixes);
+}
+
+// A kill between two renames, made certain rather than left to chance: the fault shim
+// (tests/fault_shim.c, PHOTOMILL_FAULT_KILL_RENAME=N) kills the run with SIGKILL at its N-th
+// rename, before making it, for every N from 2 to the stage's number of outputs. Then exactly the
+// N - 1 outputs renamed first hold the killed run's complete content, the others their previous
+// bytes, and the next stage refuses the mix, naming the run. (The temporaries not yet renamed
+// stay behind: nothing runs after SIGKILL to remove them.)
+TEST_F(KillTest, KilledBetweenTwoRenamesLeavesAMixTheNextStageRefuses) {
+  const std::string i = (dir_.path() / "in").string() + "/";
+  ASSERT_EQ(run({"match", i + "observations.csv", "--camera", i + "camera.yaml", "-o", i + "tracks.csv"}, dir_.path(), "setup"), 0);
+  const char* asan = std::getenv("ASAN_OPTIONS");
+  const std::string asan_options =
+      std::string(asan != nullptr && *asan != '\0' ? std::string(asan) + ":" : "") + "verify_asan_link_order=0";
+  int windows = 0;
+  for (const Stage& s : chain(i)) {
+    SCOPED_TRACE(s.name);
+    const fs::path prev = dir_.path() / (s.name + "-prev");
+    fs::create_directories(prev / "feat");
+    if (s.name == "toolpath") fs::copy_file(dir_.path() / "fitsurf-prev" / "surface.txt", prev / "surface.txt");
+    ASSERT_EQ(run(s.args, prev, "old"), 0) << read_file(prev / "stderr.txt");
+    for (std::size_t n = 2; n <= s.outputs.size(); ++n, ++windows) {
+      const fs::path work = dir_.path() / (s.name + "-rename-" + std::to_string(n));
+      fs::copy(prev, work, fs::copy_options::recursive);
+      const std::string id = "window" + std::to_string(windows);
+      const fs::path log = dir_.path() / (s.name + "-faults-" + std::to_string(n) + ".log");
+      const int code = wait_exit(start(s.args, work, id,
+                                       {{"LD_PRELOAD", PHOTOMILL_FAULT_SHIM},
+                                        {"PHOTOMILL_FAULT_KILL_RENAME", std::to_string(n)},
+                                        {"PHOTOMILL_FAULT_LOG", log.string()},
+                                        {"ASAN_OPTIONS", asan_options}}));
+      EXPECT_EQ(code, 128 + SIGKILL) << "killed before rename " << n << "? " << read_file(work / "stderr.txt");
+      EXPECT_NE(read_file(log).find("kill before rename"), std::string::npos) << "no kill injected at rename " << n;
+      std::size_t n_new = 0;
+      for (const auto& o : s.outputs) {
+        if (read_file(work / o) == read_file(prev / o)) continue;
+        std::string got;
+        try {
+          got = complete_run(work / o);
+        } catch (const std::exception& e) {
+          ADD_FAILURE() << o << " killed before rename " << n << ": neither the previous content nor complete: " << e.what();
+          continue;
+        }
+        EXPECT_EQ(got, id) << o;
+        ++n_new;
+      }
+      EXPECT_EQ(n_new, n - 1) << "killed before rename " << n;
+      EXPECT_EQ(run(s.next, work, "next"), 1) << "the mix left by a kill before rename " << n << " was not refused";
+      EXPECT_NE(read_file(work / "stderr.txt").find("run"), std::string::npos) << read_file(work / "stderr.txt");
+    }
+  }
+  EXPECT_EQ(windows, 1 + 2 + 1 + 1);  // detect 2 outputs, triangulate 3, fitsurf 2, toolpath 2
 }
 
 // Two runs of one stage at once on the same outputs (two jobs started in one folder): both
