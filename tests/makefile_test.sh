@@ -45,4 +45,21 @@ grep -q "PHOTOS: one extension for all" <<<"$out" || fail "unexpected message: $
 mkdir -p repo/build/bin && cp "$mk" repo/ && touch repo/build/bin/detect
 cmds=$(make -n -f repo/Makefile.example PHOTOS="$demo/part_00.jpg" CALIB_PHOTOS="$demo/board_00.jpg" CONTROL="$demo/control_points.csv" OUT=job2)
 grep -q "^repo/build/bin/detect " <<<"$cmds" || fail "BIN is not the build beside the Makefile: $(head -3 <<<"$cmds")"
-echo "makefile_test: globs quoted or not, FITSURF+= keeps PART_BOX, an unmatched glob, .JPG photos, one extension, BIN beside the Makefile: ok"
+# Photos only (MARKERS=0) with a camera given (CAMERA=): no calibration, no markers, no control
+# points, every pair's features matched, an arbitrary scale, no part box, and no tool path.
+touch given.yaml
+free=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="upper/*.JPG" CALIB_PHOTOS="nowhere/*.jpg" CAMERA=given.yaml MARKERS=0 OUT=job4)
+grep -q "^cp given.yaml job4/camera.yaml" <<<"$free" || fail "CAMERA= is not copied as the job's camera"
+! grep -q -e "/calib " -e "--charuco" -e "--aruco" -e "--control-points" -e "--keep-box" -e "/toolpath " -e "/clpost " -e "/rough " <<<"$free" ||
+  fail "MARKERS=0 still runs a step that needs markers, control points or mm: $(grep -e /calib -e --aruco -e --control-points -e --keep-box -e /toolpath -e /clpost -e /rough <<<"$free" | head -2)"
+n=$(grep -c "^/opt/pm/bin/detect  --features job4/feat .*upper/part_0[0-2]\.JPG *$" <<<"$free" || true)
+[ "$n" -eq 3 ] || fail "expected one features-only detect per photo (3), got $n: $(grep detect <<<"$free" | head -1)"
+grep -q "^/opt/pm/bin/match job4/feat/part_00.JPG.feat job4/feat/part_01.JPG.feat job4/feat/part_02.JPG.feat --camera job4/camera.yaml  -o job4/tracks.csv" <<<"$free" ||
+  fail "MARKERS=0: match is not given every photo's features without poses: $(grep /match <<<"$free")"
+grep -q "^/opt/pm/bin/triangulate job4/tracks.csv --camera job4/camera.yaml --arbitrary-scale" <<<"$free" || fail "MARKERS=0: triangulate without --arbitrary-scale"
+grep -q "^/opt/pm/bin/fitsurf job4/cloud.ply" <<<"$free" && grep -q "^/opt/pm/bin/report job4" <<<"$free" || fail "MARKERS=0: no surface or report"
+if out=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="upper/*.JPG" CAMERA=given.yaml MARKERS=0 FEATURES=0 OUT=job4 2>&1); then
+  fail "MARKERS=0 FEATURES=0 (nothing to match) must stop make"
+fi
+grep -q "MARKERS=0 needs FEATURES=1" <<<"$out" || fail "unexpected message: $out"
+echo "makefile_test: globs quoted or not, FITSURF+= keeps PART_BOX, an unmatched glob, .JPG photos, one extension, BIN beside the Makefile, MARKERS=0 with CAMERA=: ok"
