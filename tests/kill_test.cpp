@@ -15,7 +15,6 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
-#include <map>
 #include <optional>
 #include <random>
 #include <set>
@@ -142,6 +141,27 @@ std::vector<Stage> chain(const std::string& i) {
   };
 }
 
+// After a killed run in `work` (a copy of `prev` before it), the number of outputs it left new.
+// Each output must be the previous one byte for byte or complete with the killed run's id `id`;
+// `when` says which kill, in the failure messages.
+int new_outputs(const Stage& s, const fs::path& work, const fs::path& prev, const std::string& id,
+                const std::string& when) {
+  int n_new = 0;
+  for (const auto& o : s.outputs) {
+    if (read_file(work / o) == read_file(prev / o)) continue;
+    std::string got;
+    try {
+      got = complete_run(work / o);
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << o << " " << when << ": neither the previous content nor complete: " << e.what();
+      continue;
+    }
+    EXPECT_EQ(got, id) << o << " " << when;
+    ++n_new;
+  }
+  return n_new;
+}
+
 TEST_F(KillTest, EveryOutputIsPreviousOrCompleteAndAMixIsRefused) {
   const std::string i = (dir_.path() / "in").string() + "/";
   ASSERT_EQ(run({"match", i + "observations.csv", "--camera", i + "camera.yaml", "-o", i + "tracks.csv"}, dir_.path(), "setup"), 0);
@@ -160,9 +180,7 @@ TEST_F(KillTest, EveryOutputIsPreviousOrCompleteAndAMixIsRefused) {
     const auto t0 = Clock::now();
     ASSERT_EQ(run(s.args, fresh, "new"), 0) << read_file(fresh / "stderr.txt");
     const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-    std::map<std::string, std::string> old_bytes;
     for (const auto& o : s.outputs) {
-      old_bytes[o] = read_file(prev / o);
       ASSERT_EQ(complete_run(prev / o), "old") << o;
       ASSERT_EQ(complete_run(fresh / o), "new") << o;
     }
@@ -187,20 +205,7 @@ TEST_F(KillTest, EveryOutputIsPreviousOrCompleteAndAMixIsRefused) {
       std::this_thread::sleep_for(std::chrono::duration<double>(at));
       ::kill(pid, SIGKILL);
       const int code = wait_exit(pid);
-      int n_new = 0;
-      for (const auto& o : s.outputs) {
-        const std::string bytes = read_file(work / o);
-        if (bytes == old_bytes[o]) continue;
-        std::string got;
-        try {
-          got = complete_run(work / o);
-        } catch (const std::exception& e) {
-          ADD_FAILURE() << o << " after a kill at " << at << " s: neither the previous content nor complete: " << e.what();
-          continue;
-        }
-        EXPECT_EQ(got, id) << o << " after a kill at " << at << " s";
-        ++n_new;
-      }
+      const int n_new = new_outputs(s, work, prev, id, "after a kill at " + std::to_string(at) + " s");
       std::printf("%s killed at %.3f s of %.3f (exit %d): %d of %zu outputs new\n", s.name.c_str(), at, seconds, code, n_new,
                   s.outputs.size());
       if (n_new > 0 && n_new < static_cast<int>(s.outputs.size())) {
@@ -244,20 +249,8 @@ TEST_F(KillTest, KilledBetweenTwoRenamesLeavesAMixTheNextStageRefuses) {
                                         {"ASAN_OPTIONS", asan_options}}));
       EXPECT_EQ(code, 128 + SIGKILL) << "killed before rename " << n << "? " << read_file(work / "stderr.txt");
       EXPECT_NE(read_file(log).find("kill before rename"), std::string::npos) << "no kill injected at rename " << n;
-      std::size_t n_new = 0;
-      for (const auto& o : s.outputs) {
-        if (read_file(work / o) == read_file(prev / o)) continue;
-        std::string got;
-        try {
-          got = complete_run(work / o);
-        } catch (const std::exception& e) {
-          ADD_FAILURE() << o << " killed before rename " << n << ": neither the previous content nor complete: " << e.what();
-          continue;
-        }
-        EXPECT_EQ(got, id) << o;
-        ++n_new;
-      }
-      EXPECT_EQ(n_new, n - 1) << "killed before rename " << n;
+      const int n_new = new_outputs(s, work, prev, id, "killed before rename " + std::to_string(n));
+      EXPECT_EQ(n_new, static_cast<int>(n) - 1) << "killed before rename " << n;
       EXPECT_EQ(run(s.next, work, "next"), 1) << "the mix left by a kill before rename " << n << " was not refused";
       EXPECT_NE(read_file(work / "stderr.txt").find("run"), std::string::npos) << read_file(work / "stderr.txt");
     }
