@@ -119,6 +119,15 @@ void legend(Canvas& c, const std::vector<Segments>& lines) {
 
 std::string image_name(const std::string& image) { return fs::path(image).filename().string(); }
 
+// "<lead><n><what>" built by appending: GCC 12's -Wrestrict misfires on `" " + std::string&&`
+// (and CI builds with -Werror).
+std::string count_text(const char* lead, std::size_t n, const char* what) {
+  std::string s(lead);
+  s += std::to_string(n);
+  s += what;
+  return s;
+}
+
 // Photo-pixel rulers (issue 27: a scale and its unit on every picture): ticks along the bottom
 // (u px) and right (v px) edges at round steps, numbered, "u px" / "v px" at their ends.
 void rulers(Canvas& c, int photo_w, int photo_h) {
@@ -195,11 +204,11 @@ cv::Mat draw_photo(const cv::Mat& grey, const MarkerDetection* markers, const Fe
   std::vector<Segments> lines;
   Segments first{{name + ":", kWhite}};
   if (markers) {
-    first.push_back({" " + std::to_string(markers->marker_ids.size()) + " markers (id at centre)", kMarker});
-    first.push_back({", " + std::to_string(markers->rejected.size()) + " dropped", kRejected});
-    first.push_back({", " + std::to_string(markers->candidates.size()) + " unidentified", kCandidate});
+    first.push_back({count_text(" ", markers->marker_ids.size(), " markers (id at centre)"), kMarker});
+    first.push_back({count_text(", ", markers->rejected.size(), " dropped"), kRejected});
+    first.push_back({count_text(", ", markers->candidates.size(), " unidentified"), kCandidate});
   }
-  if (features) first.push_back({(markers ? ", " : " ") + std::to_string(features->keypoints.size()) + " features", kFeature});
+  if (features) first.push_back({count_text(markers ? ", " : " ", features->keypoints.size(), " features"), kFeature});
   lines.push_back(first);
   if (markers) {
     lines.push_back({{"corners: ", kWhite}, {"0 ", kCorner[0]}, {"1 ", kCorner[1]}, {"2 ", kCorner[2]}, {"3", kCorner[3]},
