@@ -17,9 +17,9 @@
 
 #include "calib/init.hpp"
 #include "formats/error.hpp"
-#include "geometry/linear_algebra.hpp"
 #include "formats/image.hpp"
 #include "formats/image_decode.hpp"
+#include "geometry/linear_algebra.hpp"
 
 namespace photomill::calib {
 namespace {

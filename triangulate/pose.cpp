@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include <Eigen/Core>
+#include <Eigen/LU>  // determinant
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 
