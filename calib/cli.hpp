@@ -5,11 +5,8 @@
 #include <string>
 #include <vector>
 
-namespace CLI {
-class App;  // CLI11's application (<CLI/CLI.hpp>, included where options are added: a heavy header)
-}  // namespace CLI
-
 #include "calib/calibrate.hpp"
+#include "formats/cli_fwd.hpp"
 
 namespace photomill::calib {
 

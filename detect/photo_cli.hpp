@@ -7,12 +7,9 @@
 #include <string>
 #include <vector>
 
-namespace CLI {
-class App;  // CLI11's application (<CLI/CLI.hpp>, included where options are added: a heavy header)
-}  // namespace CLI
-
 #include "detect/draw.hpp"
 #include "detect/photos.hpp"
+#include "formats/cli_fwd.hpp"
 
 namespace photomill::detect {
 

@@ -6,12 +6,9 @@
 #include <string>
 #include <vector>
 
-namespace CLI {
-class App;  // CLI11's application (<CLI/CLI.hpp>, included where options are added: a heavy header)
-}  // namespace CLI
-
 #include "fitsurf/fitsurf.hpp"
 #include "fitsurf/uncertainty.hpp"
+#include "formats/cli_fwd.hpp"
 #include "formats/point_cloud.hpp"
 
 namespace photomill::fitsurf {

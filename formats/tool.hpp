@@ -11,9 +11,7 @@
 #include <utility>
 #include <vector>
 
-namespace CLI {
-class App;  // CLI11's application (<CLI/CLI.hpp>, included where options are added: a heavy header)
-}  // namespace CLI
+#include "formats/cli_fwd.hpp"
 
 namespace photomill::tool {
 

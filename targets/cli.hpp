@@ -5,10 +5,7 @@
 #include <string>
 #include <vector>
 
-namespace CLI {
-class App;  // CLI11's application (<CLI/CLI.hpp>, included where options are added: a heavy header)
-}  // namespace CLI
-
+#include "formats/cli_fwd.hpp"
 #include "targets/sheet.hpp"
 
 namespace photomill::targets {

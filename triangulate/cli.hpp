@@ -5,10 +5,7 @@
 #include <optional>
 #include <string>
 
-namespace CLI {
-class App;  // CLI11's application (<CLI/CLI.hpp>, included where options are added: a heavy header)
-}  // namespace CLI
-
+#include "formats/cli_fwd.hpp"
 #include "triangulate/preview.hpp"
 #include "triangulate/reconstruct.hpp"
 
