@@ -38,6 +38,8 @@ int main(int argc, char** argv) {
         app.add_option("--max-refine-shift-px", o.max_refine_shift_px,
                        "A refinement that moves the click farther than this is refused (the click is kept)")
             ->check(tool::finite_in(0.01, 100))->capture_default_str();
+        app.add_option("--first-id", o.first_id, "The id of the first new point (above detect's marker-corner ids)")
+            ->check(tool::finite_in(0, 1e15))->capture_default_str();
         app.add_option("--thumbnail-px", o.thumbnail_px, "Thumbnails' longest side")->check(tool::finite_in(32, 2048))->capture_default_str();
         app.add_option("-j,--jobs", o.threads, "Photos read in parallel at start (0 = all cores)")->check(tool::non_negative_up_to(1024))->capture_default_str();
       },
@@ -46,8 +48,8 @@ int main(int argc, char** argv) {
         if (output.empty()) throw UsageError("give the observations file: -o FILE");
         if (output == "-") throw UsageError("-o must name a file (it is rewritten after every change)");
         const auto opt = [](const std::string& s) { return s.empty() ? std::nullopt : std::optional<std::string>(s); };
+        pick::HttpServer server(port);  // first: a taken port is said before the photos are read
         pick::Session session(photos, opt(camera), opt(poses), output, o);
-        pick::HttpServer server(port);
         pick::App app(session, pick::make_token(), server.port(), *pick::parse_refine(refine));
         std::cout << app.url() << std::endl;
         log::info("open " + app.url() + " in a browser on this machine; the page's Finish button (or Ctrl+C) ends");

@@ -217,7 +217,7 @@ TEST_F(PickApp, EpipolarCurvesAndPredictionsMeetTheTrueProjections) {
   EXPECT_LT(worst_prediction, 0.01);
   const HttpResponse state = call(request("GET", with_token("/api/state")));
   EXPECT_NE(state.body.find("\"residual_px\""), std::string::npos);
-  EXPECT_NE(state.body.find("\"next_free_id\":66"), std::string::npos) << state.body;
+  EXPECT_NE(state.body.find("\"next_free_id\":100000"), std::string::npos) << state.body;  // marker ids stay below
 }
 
 TEST(PickSession, CornerRefinementFindsTheSaddleOfAChessboardCornerToAFewHundredthsOfAPixel) {
@@ -252,11 +252,11 @@ TEST(PickSession, LoadsAnExistingFileAndKeepsRowsOfOtherPhotos) {
   Job job;
   {
     std::ofstream out(job.output);
-    out << "image,point_id,u_px,v_px\nelsewhere.jpg,7,1,2\n" << job.photos[0] << ",3,10,20\n";
+    out << "image,point_id,u_px,v_px\nelsewhere.jpg,100007,1,2\n" << job.photos[0] << ",3,10,20\n";
   }
   Session s(job.photos, std::nullopt, std::nullopt, job.output, {});
   EXPECT_FALSE(s.oriented());
-  EXPECT_EQ(s.next_free_id(), 8);
+  EXPECT_EQ(s.next_free_id(), 100008);  // above every clicked id, whichever photo holds it
   s.mark(1, 8, {30, 40}, Refine::None);
   const auto saved = job.saved();
   ASSERT_EQ(saved.size(), 3u);
@@ -413,7 +413,7 @@ TEST(PickServer, ChecksEveryOptionAtParseTime) {
   Job job;
   const std::vector<std::pair<std::string, std::string>> bad{
       {"--port", "-1"}, {"--refine", "sharpen"}, {"--corner-half-window-px", "1"}, {"--lsm-half-window-px", "nan"},
-      {"--max-refine-shift-px", "0"}, {"--thumbnail-px", "5000"}, {"--jobs", "-2"}};
+      {"--max-refine-shift-px", "0"}, {"--thumbnail-px", "5000"}, {"--first-id", "-1"}, {"--jobs", "-2"}};
   for (const auto& [option, value] : bad) {
     const auto r = test::run_tool("pick", {job.photos[0], "-o", job.output, option, value});
     EXPECT_NE(r.exit_code, 0) << option << " " << value;

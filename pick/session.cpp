@@ -288,8 +288,10 @@ void Session::save() const {
 }
 
 PointId Session::next_free_id() const {
-  PointId next = 0;
-  for (const auto& o : observations_) next = std::max(next, o.point_id + 1);
+  PointId next = options_.first_id;
+  for (const auto& o : observations_) {
+    if (o.point_id >= options_.first_id) next = std::max(next, o.point_id + 1);
+  }
   return next;
 }
 

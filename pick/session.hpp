@@ -51,6 +51,10 @@ struct SessionOptions {
   int epipolar_samples = 2000;
   double ray_depth_min = 0.02;
   double ray_depth_max = 50.0;
+  // The id a new point gets when none is marked at or above it: above the ids detect gives marker
+  // corners (4 x marker id + corner, under 4 000 for the largest OpenCV dictionary), so that
+  // clicked points joined to detect's observations never merge with a marker by accident.
+  PointId first_id = 100000;
   // Thumbnails: longest side in pixels.
   int thumbnail_px = 256;
   int threads = 0;  // thumbnails made in parallel; 0 = all cores
@@ -126,8 +130,8 @@ public:
 
   std::vector<PointSummary> points() const;
   Guide guide(PointId point_id, std::size_t target) const;
-  // One more than the largest id in use (0 when there is none): a new point never takes the id
-  // of one marked before, in this file or in --reserve's.
+  // One more than the largest id in use at or above SessionOptions::first_id (first_id when there
+  // is none): a new point never takes the id of one marked before.
   PointId next_free_id() const;
 
   // The photo's pixels, grey (decoded on first use and kept: refinement needs them).

@@ -62,4 +62,12 @@ if out=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="upper/*.JPG" CAMERA=given.yaml
   fail "MARKERS=0 FEATURES=0 (nothing to match) must stop make"
 fi
 grep -q "MARKERS=0 needs FEATURES=1" <<<"$out" || fail "unexpected message: $out"
-echo "makefile_test: globs quoted or not, FITSURF+= keeps PART_BOX, an unmatched glob, .JPG photos, one extension, BIN beside the Makefile, MARKERS=0 with CAMERA=: ok"
+# Points clicked with pick (CLICKED=) join the markers' observations; not without markers.
+touch clicked.csv
+clicked=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="$demo/part_*.jpg" CALIB_PHOTOS="$demo/board_*.jpg" CLICKED=clicked.csv OUT=job5)
+grep -q "^awk .* job5/obs/part_11.csv clicked.csv > job5/observations.csv" <<<"$clicked" || fail "CLICKED= is not joined to the observations: $(grep '^awk' <<<"$clicked")"
+if out=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="upper/*.JPG" CAMERA=given.yaml MARKERS=0 CLICKED=clicked.csv OUT=job5 2>&1); then
+  fail "CLICKED= with MARKERS=0 must stop make"
+fi
+grep -q "CLICKED= joins the markers' observations: it needs MARKERS=1" <<<"$out" || fail "unexpected message: $out"
+echo "makefile_test: globs quoted or not, FITSURF+= keeps PART_BOX, an unmatched glob, .JPG photos, one extension, BIN beside the Makefile, MARKERS=0 with CAMERA=, CLICKED=: ok"
