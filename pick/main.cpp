@@ -29,10 +29,12 @@ int main(int argc, char** argv) {
         app.add_option("--camera", camera, "camera.yaml of the photos (with --poses: epipolar curves, predictions, residuals)");
         app.add_option("--poses", poses, "The photos' poses (triangulate's poses.csv)");
         app.add_option("--port", port, "TCP port on 127.0.0.1 (0 = a free port)")->check(tool::finite_in(0, 65535))->capture_default_str();
-        app.add_option("--refine", refine, "How a click is refined at first (the page can change it): none, corner, match, or auto (corner below zoom 4, else none)")
-            ->check(CLI::IsMember({"none", "corner", "match", "auto"}))->capture_default_str();
+        app.add_option("--refine", refine, "How a click is refined at first (the page can change it): none, corner, blob, match, or auto (corner below zoom 4, else none)")
+            ->check(CLI::IsMember({"none", "corner", "blob", "match", "auto"}))->capture_default_str();
         app.add_option("--corner-half-window-px", o.corner_half_window_px, "Corner refinement's window half-width")
             ->check(tool::finite_in(2, 50))->capture_default_str();
+        app.add_option("--blob-half-window-px", o.blob_half_window_px, "Blob centring's window half-width (a blob must fit in it)")
+            ->check(tool::finite_in(3, 200))->capture_default_str();
         app.add_option("--lsm-half-window-px", o.lsm_half_window_px, "Least-squares matching's window half-width")
             ->check(tool::finite_in(3, 50))->capture_default_str();
         app.add_option("--max-refine-shift-px", o.max_refine_shift_px,

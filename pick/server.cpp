@@ -270,7 +270,7 @@ HttpResponse App::mark(const HttpRequest& r) {
   Refine refine = default_refine_;  // what the page was started with
   if (const JsonValue* v = body.find("refine")) {
     const auto parsed = parse_refine(v->string);
-    if (v->type != JsonValue::Type::String || !parsed) throw RequestError("\"refine\" must be none, corner, match or auto");
+    if (v->type != JsonValue::Type::String || !parsed) throw RequestError("\"refine\" must be none, corner, blob, match or auto");
     refine = *parsed;
   }
   double zoom = 1;

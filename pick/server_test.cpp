@@ -16,8 +16,11 @@
 #include <map>
 #include <sstream>
 #include <thread>
+#include <tuple>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "formats/error.hpp"
 #include "formats/tables.hpp"
@@ -248,6 +251,54 @@ TEST(PickSession, CornerRefinementFindsTheSaddleOfAChessboardCornerToAFewHundred
   EXPECT_EQ(session.mark(0, 1001, {1000.25, 700.5}, Refine::Auto, 1).refine, Refine::Corner);
 }
 
+// A disc of radius `r_px` centred at `centre` (OpenCV's pixel convention) on a flat background,
+// rendered 8x supersampled and area-averaged, blurred (sigma 0.8 px) and with noise (sigma 1).
+cv::Mat disc_image(const Eigen::Vector2d& centre, double r_px, double inside, double outside) {
+  const int s = 8;
+  cv::Mat big(300 * s, 400 * s, CV_32F, cv::Scalar(outside));
+  // Supersample k covers [k/s, (k+1)/s) of the image area; its centre, in pixels, is (k + 0.5)/s - 0.5.
+  cv::circle(big, cv::Point(static_cast<int>(std::lround((centre.x() + 0.5) * s * 16 - 8)),
+                            static_cast<int>(std::lround((centre.y() + 0.5) * s * 16 - 8))),
+             static_cast<int>(std::lround(r_px * s * 16)), cv::Scalar(inside), cv::FILLED, cv::LINE_8, 4);
+  cv::Mat img, noise(300, 400, CV_32F);
+  cv::resize(big, img, cv::Size(400, 300), 0, 0, cv::INTER_AREA);
+  cv::GaussianBlur(img, img, cv::Size(0, 0), 0.8);
+  cv::randn(noise, 0, 1);
+  img += noise;
+  cv::Mat out;
+  img.convertTo(out, CV_8U);
+  return out;
+}
+
+TEST(PickSession, BlobCentringFindsTheCentreOfADrawnDot) {
+  test::TempDir dir;
+  const std::vector<std::tuple<Eigen::Vector2d, double, double, double>> discs{
+      {{150.37, 120.81}, 6, 40, 210}, {{201.62, 88.13}, 4, 230, 30}, {{90.5, 200.25}, 9.5, 20, 180}};
+  std::vector<std::string> photos;
+  for (std::size_t i = 0; i < discs.size(); ++i) {
+    const auto& [c, r, in, out] = discs[i];
+    photos.push_back((dir.path() / ("dot" + std::to_string(i) + ".png")).string());
+    ASSERT_TRUE(cv::imwrite(photos.back(), disc_image(c, r, in, out)));
+  }
+  Session session(photos, std::nullopt, std::nullopt, (dir.path() / "c.csv").string(), {});
+  double worst = 0;
+  for (std::size_t i = 0; i < discs.size(); ++i) {
+    const Eigen::Vector2d c = std::get<0>(discs[i]);
+    const MarkResult m = session.mark(i, 100000, c + Eigen::Vector2d(1.7, -1.2), Refine::Blob);
+    ASSERT_TRUE(m.refined) << m.note;
+    worst = std::max(worst, (Eigen::Vector2d(m.observation.u_px, m.observation.v_px) - c).norm());
+  }
+  std::cerr << "blob centring from 2 px off: " << discs.size() << " discs, worst " << worst << " px\n";
+  EXPECT_LT(worst, 0.05);
+  // A blob larger than the window: refused, the click kept, the reason given.
+  SessionOptions small;
+  small.blob_half_window_px = 5;
+  Session tight(photos, std::nullopt, std::nullopt, (dir.path() / "d.csv").string(), small);
+  const MarkResult m = tight.mark(2, 100000, std::get<0>(discs[2]), Refine::Blob);
+  EXPECT_FALSE(m.refined);
+  EXPECT_NE(m.note.find("larger than the window"), std::string::npos) << m.note;
+}
+
 TEST(PickSession, LoadsAnExistingFileAndKeepsRowsOfOtherPhotos) {
   Job job;
   {
@@ -413,7 +464,7 @@ TEST(PickServer, ChecksEveryOptionAtParseTime) {
   Job job;
   const std::vector<std::pair<std::string, std::string>> bad{
       {"--port", "-1"}, {"--refine", "sharpen"}, {"--corner-half-window-px", "1"}, {"--lsm-half-window-px", "nan"},
-      {"--max-refine-shift-px", "0"}, {"--thumbnail-px", "5000"}, {"--first-id", "-1"}, {"--jobs", "-2"}};
+      {"--max-refine-shift-px", "0"}, {"--blob-half-window-px", "2"}, {"--thumbnail-px", "5000"}, {"--first-id", "-1"}, {"--jobs", "-2"}};
   for (const auto& [option, value] : bad) {
     const auto r = test::run_tool("pick", {job.photos[0], "-o", job.output, option, value});
     EXPECT_NE(r.exit_code, 0) << option << " " << value;

@@ -40,12 +40,60 @@ const char* status_note(triangulate::TriangulationStatus s) {
   return "";
 }
 
+// The centre of the blob under `click` in `g` (CV_32F): the window of half-width h around it is
+// split at the mid-grey between its darkest and brightest pixels; the blob is the connected region
+// on the click's side of that level that holds the pixel nearest the click, grown by one pixel
+// (its anti-aliased rim); its centre is the centroid of those pixels weighted by their contrast
+// with the background level, |I - background|, which moves with the sub-pixel position of the rim
+// (the grey-value weighted centroid of target measurement, Luhmann et al., "Close-Range
+// Photogrammetry and 3D Imaging", 2nd ed., sec. 5.4.2.3). nullopt, with *why, when the window
+// holds no blob or the blob touches its border (larger than the window).
+std::optional<Eigen::Vector2d> blob_centre(const cv::Mat& g, const Eigen::Vector2d& click, int h, std::string* why) {
+  const int cx = static_cast<int>(std::lround(click.x())), cy = static_cast<int>(std::lround(click.y()));
+  if (cx - h < 0 || cy - h < 0 || cx + h >= g.cols || cy + h >= g.rows) {
+    *why = "too close to the border for blob centring";
+    return std::nullopt;
+  }
+  const cv::Mat w = g(cv::Rect(cx - h, cy - h, 2 * h + 1, 2 * h + 1));
+  double lo = 0, hi = 0;
+  cv::minMaxLoc(w, &lo, &hi);
+  if (hi - lo < 10) {
+    *why = "no edge within " + std::to_string(h) + " px of the click: no blob there, or one larger than the window (--blob-half-window-px)";
+    return std::nullopt;
+  }
+  const double level = 0.5 * (lo + hi);
+  const bool dark = w.at<float>(h, h) < level;
+  cv::Mat side = dark ? (w < level) : (w > level);  // 8-bit mask, 255 on the click's side
+  cv::Mat labels;
+  cv::connectedComponents(side, labels, 8, CV_32S);
+  const int blob = labels.at<int>(h, h);
+  cv::Mat mask = labels == blob;
+  cv::dilate(mask, mask, cv::Mat());
+  const double background = dark ? hi : lo;
+  double sum = 0, su = 0, sv = 0;
+  for (int r = 0; r < w.rows; ++r) {
+    for (int c = 0; c < w.cols; ++c) {
+      if (!mask.at<unsigned char>(r, c)) continue;
+      if (r == 0 || c == 0 || r == w.rows - 1 || c == w.cols - 1) {
+        *why = "the blob is larger than the window (" + std::to_string(2 * h + 1) + " px)";
+        return std::nullopt;
+      }
+      const double weight = std::abs(w.at<float>(r, c) - background);
+      sum += weight;
+      su += weight * c;
+      sv += weight * r;
+    }
+  }
+  return Eigen::Vector2d(cx - h + su / sum, cy - h + sv / sum);
+}
+
 }  // namespace
 
 const char* to_string(Refine r) {
   switch (r) {
     case Refine::None: return "none";
     case Refine::Corner: return "corner";
+    case Refine::Blob: return "blob";
     case Refine::Match: return "match";
     case Refine::Auto: return "auto";
   }
@@ -55,6 +103,7 @@ const char* to_string(Refine r) {
 std::optional<Refine> parse_refine(const std::string& name) {
   if (name == "none") return Refine::None;
   if (name == "corner") return Refine::Corner;
+  if (name == "blob") return Refine::Blob;
   if (name == "match") return Refine::Match;
   if (name == "auto") return Refine::Auto;
   return std::nullopt;
@@ -190,6 +239,13 @@ MarkResult Session::mark(std::size_t photo, PointId point_id, const Eigen::Vecto
                        cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 1e-4));
       at = {corner[0].x, corner[0].y};
     }
+  } else if (refine == Refine::Blob) {
+    std::string why;
+    if (const auto c = blob_centre(grey(photo), click_px, options_.blob_half_window_px, &why)) {
+      at = *c;
+    } else {
+      r.note = why;
+    }
   } else if (refine == Refine::Match) {
     const Observation* reference = nullptr;
     std::size_t reference_photo = 0;
@@ -238,7 +294,8 @@ MarkResult Session::mark(std::size_t photo, PointId point_id, const Eigen::Vecto
   }
   r.shift_px = (at - click_px).norm();
   if (refine != Refine::None && r.note.empty()) {
-    if (!std::isfinite(at.x()) || !std::isfinite(at.y()) || r.shift_px > options_.max_refine_shift_px) {
+    // (A blob holds the click by construction: its centre is where the user pointed, however far.)
+    if (!std::isfinite(at.x()) || !std::isfinite(at.y()) || (refine != Refine::Blob && r.shift_px > options_.max_refine_shift_px)) {
       r.note = "the refined point moved " + std::to_string(r.shift_px) + " px (more than " +
                std::to_string(options_.max_refine_shift_px) + "): the click is kept";
       at = click_px;

@@ -27,6 +27,8 @@ enum class Refine {
   Corner,  // the nearest grey-value corner (OpenCV's cornerSubPix: the point where the image
            // gradients in the window are orthogonal to the lines from it), for drawn crosses and
            // the corners of squares
+  Blob,    // the grey-value centroid of the dark or bright blob under the click, for drawn dots
+           // and round targets
   Match,   // least-squares matching (match's LSM) of the point's neighbourhood in the photo where it
            // was marked first, for natural texture
   Auto     // Corner when the click is coarser than the corner fit (zoom below
@@ -36,14 +38,16 @@ const char* to_string(Refine r);
 std::optional<Refine> parse_refine(const std::string& name);
 
 struct SessionOptions {
-  // Corner refinement: window half-width, and the farthest a refined point may move from the
-  // click before the click is kept instead (the window then held no corner, or another one).
+  // Corner refinement: window half-width, and the farthest a refined point (corner or match) may
+  // move from the click before the click is kept instead (the window held no corner, or another).
   int corner_half_window_px = 5;
   double max_refine_shift_px = 2.0;
   // Refine::Auto: corner refinement below this zoom (screen pixels per image pixel). A click at
   // zoom z is within 1/(2z) px; cornerSubPix on the corner of a dark square (an L-corner, not a
   // saddle) is biased by about 0.2 px (docs/measurements/pick.md): above zoom 4 the click is better.
   double auto_corner_below_zoom = 4;
+  // Blob centring: the window a blob must fit in (half-width).
+  int blob_half_window_px = 15;
   // Least-squares matching: window half-width (match's LsmOptions do the rest).
   int lsm_half_window_px = 12;
   // Epipolar curves: samples along the ray, spread geometrically over depths from
