@@ -5,7 +5,7 @@
 // before a point is marked in its second photo, the epipolar curve the page holds for it passes
 // within 1 px of the true projection; before its third, the predicted position is within 1 px;
 // the marks' crosses are drawn; no console error and no request beyond the server. Then a
-// screenshot, and the page's Finish button. The caller triangulates the saved file.
+// screenshot, the keyboard (N, a click, Ctrl+Z, ]), and the page's Finish button. The caller triangulates the saved file.
 // Usage: node check_pick.mjs URL TRUTH_OBSERVATIONS.csv IDS IMAGES ZOOM SCREENSHOT.png
 //   IDS: comma-separated point ids; IMAGES: comma-separated image names as pick shows them.
 // Exit 0 ok, 1 a check failed, 77 skipped (no Chromium or playwright-core; never when CI is set).
@@ -162,6 +162,24 @@ try {
     }
   }
   await page.screenshot({ path: screenshot });
+  // Keyboard: N gives the next unused id; a click marks it; Ctrl+Z undoes the mark; ] shows the
+  // next photo in the pane under the mouse. The saved file ends as it was.
+  const box = await page.locator('.pane canvas').first().boundingBox();
+  await page.mouse.move(box.x + box.width / 2 + 0.5, box.y + box.height / 2 + 0.5);
+  await page.keyboard.press('n');
+  const fresh = await page.evaluate(() => [window.pick.currentId, window.pick.state.next_free_id]);
+  if (fresh[0] !== fresh[1] || ids.includes(fresh[0])) problems.push(`N gave point id ${fresh[0]}, not the next unused one (${fresh[1]})`);
+  const before = await page.evaluate(() => window.pick.lastMark);
+  await page.mouse.click(box.x + box.width / 2, box.y + box.height / 2);
+  await page.waitForFunction((b) => window.pick.lastMark !== b, before, { timeout: 10000 });
+  await page.waitForFunction((id) => window.pick.state.points.some((p) => p.point_id === id), fresh[0], { timeout: 10000 });
+  await page.keyboard.press('Control+z');
+  await page.waitForFunction((id) => !window.pick.state.points.some((p) => p.point_id === id), fresh[0], { timeout: 10000 })
+    .catch(() => problems.push('Ctrl+Z did not undo the last mark'));
+  const shown = await page.evaluate(() => window.pick.panes[0].photo);
+  await page.keyboard.press(']');
+  const next = await page.evaluate(() => window.pick.panes[0].photo);
+  if (next !== (shown + 1) % names.length) problems.push(`] showed photo ${next} after ${shown}`);
   const errorText = await page.evaluate(() => window.pick.error);
   if (errorText) problems.push(`the page reported an error: ${errorText}`);
   await page.click('#finish');
