@@ -2,10 +2,13 @@
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
+#include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <sstream>
 
@@ -47,6 +50,7 @@ const char* reason_phrase(int status) {
     case 413: return "Content Too Large";
     case 422: return "Unprocessable Content";
     case 431: return "Request Header Fields Too Large";
+    case 503: return "Service Unavailable";
     case 500: return "Internal Server Error";
     default: return "Status";
   }
@@ -62,45 +66,37 @@ void send_all(int fd, const std::string& bytes) {
   }
 }
 
-// Reads one request from `fd`; a response to send instead when it cannot be read or parsed.
-std::optional<HttpResponse> read_request(int fd, HttpRequest& request) {
-  std::string data;
-  char buffer[8192];
-  std::size_t head_end = std::string::npos;
-  while (head_end == std::string::npos) {
-    const ssize_t n = ::recv(fd, buffer, sizeof buffer, 0);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) return HttpResponse{408, "text/plain; charset=utf-8", "incomplete request\n", {}};
-    data.append(buffer, static_cast<std::size_t>(n));
-    head_end = data.find("\r\n\r\n");
-    if (head_end == std::string::npos && data.size() > kMaxHeaderBytes) {
-      return HttpResponse{431, "text/plain; charset=utf-8", "request head too large\n", {}};
+HttpResponse refuse(int status, const std::string& reason) { return {status, "text/plain; charset=utf-8", reason + "\n", {}}; }
+
+// The request in the bytes received so far: nullopt while it is incomplete (*ready false), or
+// with *ready true either nullopt (`request` holds it) or the refusal to send instead.
+std::optional<HttpResponse> parse_received(const std::string& data, HttpRequest& request, bool* ready) {
+  *ready = false;
+  const std::size_t head_end = data.find("\r\n\r\n");
+  if (head_end == std::string::npos) {
+    if (data.size() > kMaxHeaderBytes) {
+      *ready = true;
+      return refuse(431, "request head too large");
     }
+    return std::nullopt;
   }
-  if (head_end > kMaxHeaderBytes) return HttpResponse{431, "text/plain; charset=utf-8", "request head too large\n", {}};
-  if (auto e = parse_request_head(data.substr(0, head_end), request)) {
-    return HttpResponse{e->status, "text/plain; charset=utf-8", e->reason + "\n", {}};
-  }
+  *ready = true;
+  if (head_end > kMaxHeaderBytes) return refuse(431, "request head too large");
+  request = HttpRequest{};
+  if (auto e = parse_request_head(data.substr(0, head_end), request)) return refuse(e->status, e->reason);
+  if (!request.header("transfer-encoding").empty()) return refuse(400, "chunked bodies are not accepted");
   std::size_t length = 0;
   const std::string cl = request.header("content-length");
-  if (!request.header("transfer-encoding").empty()) {
-    return HttpResponse{400, "text/plain; charset=utf-8", "chunked bodies are not accepted\n", {}};
-  }
   if (!cl.empty()) {
-    if (cl.find_first_not_of("0123456789") != std::string::npos || cl.size() > 9) {
-      return HttpResponse{400, "text/plain; charset=utf-8", "bad Content-Length\n", {}};
-    }
+    if (cl.find_first_not_of("0123456789") != std::string::npos || cl.size() > 9) return refuse(400, "bad Content-Length");
     length = std::stoul(cl);
-    if (length > kMaxBodyBytes) return HttpResponse{413, "text/plain; charset=utf-8", "body too large\n", {}};
+    if (length > kMaxBodyBytes) return refuse(413, "body too large");
   }
-  request.body = data.substr(head_end + 4);
-  while (request.body.size() < length) {
-    const ssize_t n = ::recv(fd, buffer, sizeof buffer, 0);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) return HttpResponse{408, "text/plain; charset=utf-8", "incomplete body\n", {}};
-    request.body.append(buffer, static_cast<std::size_t>(n));
+  if (data.size() - head_end - 4 < length) {
+    *ready = false;
+    return std::nullopt;
   }
-  request.body.resize(length);
+  request.body = data.substr(head_end + 4, length);
   return std::nullopt;
 }
 
@@ -205,27 +201,70 @@ HttpServer::~HttpServer() {
 }
 
 void HttpServer::serve(const std::function<HttpResponse(const HttpRequest&, bool* stop)>& handler) {
+  // Connections are read side by side (poll), so that one that sends nothing (a browser's
+  // speculative preconnect) does not hold up the others; each is answered as soon as its request
+  // is complete, one at a time, and dropped after kSocketTimeoutS of silence.
+  struct Client {
+    int fd;
+    std::string data;
+    std::chrono::steady_clock::time_point deadline;
+  };
+  std::vector<Client> clients;
   bool stop = false;
-  while (!stop) {
-    const int client = ::accept4(fd_, nullptr, nullptr, SOCK_CLOEXEC);
-    if (client < 0) {
-      if (errno == EINTR || errno == ECONNABORTED) continue;
-      throw InputError(kServerName + ":" + std::to_string(port_), 0, std::string("accept: ") + std::strerror(errno));
-    }
+  const auto finish = [](Client& c, const HttpResponse& response) {
     timeval timeout{kSocketTimeoutS, 0};
-    ::setsockopt(client, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
-    ::setsockopt(client, SOL_SOCKET, SO_SNDTIMEO, &timeout, sizeof timeout);
-    HttpRequest request;
-    HttpResponse response;
-    if (auto refusal = read_request(client, request)) {
-      response = std::move(*refusal);
-    } else {
-      response = handler(request, &stop);
+    ::setsockopt(c.fd, SOL_SOCKET, SO_SNDTIMEO, &timeout, sizeof timeout);
+    send_all(c.fd, serialise(response));
+    ::shutdown(c.fd, SHUT_WR);
+    ::close(c.fd);
+    c.fd = -1;
+  };
+  while (!stop) {
+    std::vector<pollfd> fds{{fd_, POLLIN, 0}};
+    for (const auto& c : clients) fds.push_back({c.fd, POLLIN, 0});
+    const int n = ::poll(fds.data(), fds.size(), 1000);
+    if (n < 0 && errno != EINTR) {
+      throw InputError(kServerName + ":" + std::to_string(port_), 0, std::string("poll: ") + std::strerror(errno));
     }
-    send_all(client, serialise(response));
-    ::shutdown(client, SHUT_WR);
-    ::close(client);
+    const auto now = std::chrono::steady_clock::now();
+    for (std::size_t i = 1; n > 0 && i < fds.size(); ++i) {
+      Client& c = clients[i - 1];
+      if (!(fds[i].revents & (POLLIN | POLLHUP | POLLERR))) continue;
+      char buffer[8192];
+      const ssize_t got = ::recv(c.fd, buffer, sizeof buffer, 0);
+      if (got <= 0) {
+        if (got < 0 && errno == EINTR) continue;
+        ::close(c.fd);  // closed or failed before a whole request: nothing to answer
+        c.fd = -1;
+        continue;
+      }
+      c.data.append(buffer, static_cast<std::size_t>(got));
+      HttpRequest request;
+      bool ready = false;
+      auto refusal = parse_received(c.data, request, &ready);
+      if (!ready) continue;
+      finish(c, refusal ? *refusal : handler(request, &stop));
+      if (stop) break;
+    }
+    for (auto& c : clients) {
+      if (c.fd >= 0 && now > c.deadline) finish(c, refuse(408, "request timeout"));
+    }
+    clients.erase(std::remove_if(clients.begin(), clients.end(), [](const Client& c) { return c.fd < 0; }), clients.end());
+    if (!stop && n > 0 && (fds[0].revents & POLLIN)) {
+      const int client = ::accept4(fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
+      if (client >= 0) {
+        if (clients.size() >= kMaxConnections) {
+          Client c{client, {}, now};
+          finish(c, refuse(503, "too many connections"));
+        } else {
+          clients.push_back({client, {}, now + std::chrono::seconds(kSocketTimeoutS)});
+        }
+      } else if (errno != EINTR && errno != ECONNABORTED && errno != EAGAIN) {
+        throw InputError(kServerName + ":" + std::to_string(port_), 0, std::string("accept: ") + std::strerror(errno));
+      }
+    }
   }
+  for (auto& c : clients) ::close(c.fd);
 }
 
 }  // namespace photomill::pick

@@ -1,5 +1,6 @@
-// A minimal HTTP/1.1 server for pick's page (issue 29): one connection at a time, one request
-// per connection (Connection: close), bound to the IPv4 loopback address only. The parsing is
+// A minimal HTTP/1.1 server for pick's page (issue 29): connections read side by side, requests
+// answered one at a time, one request per connection (Connection: close), bound to the IPv4
+// loopback address only. The parsing is
 // separate from the sockets so that tests can feed it text. Standard library and POSIX only.
 // Limits (named below) turn an oversized or slow request into a refusal instead of unbounded
 // memory or a blocked server.
@@ -19,6 +20,7 @@ namespace photomill::pick {
 inline constexpr std::size_t kMaxHeaderBytes = 16 * 1024;   // request line and headers
 inline constexpr std::size_t kMaxBodyBytes = 1024 * 1024;   // a POST's body (JSON)
 inline constexpr int kSocketTimeoutS = 10;                  // a client silent this long is dropped
+inline constexpr std::size_t kMaxConnections = 64;         // open at once; more are answered 503
 
 // A request the application cannot carry out as asked (a click outside the photo, a body that is
 // not the JSON expected): answered 422 with the message; the server goes on.
@@ -73,7 +75,7 @@ public:
 
   int port() const { return port_; }
 
-  // Accepts connections one at a time and answers each with `handler` until `handler` sets
+  // Accepts connections and answers each complete request with `handler` until `handler` sets
   // *stop (after its response is sent). Requests that cannot be parsed are answered here (400,
   // 413, 431) without calling the handler.
   void serve(const std::function<HttpResponse(const HttpRequest&, bool* stop)>& handler);

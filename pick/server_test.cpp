@@ -428,8 +428,18 @@ TEST(PickServer, ListensOnLoopbackOnlyRefusesStrangersAndFinishesOnRequest) {
   EXPECT_EQ(send_request(port, "GET /api/state?token=" + token + " HTTP/1.1\r\n" + host + "Origin: http://evil.example\r\n\r\n")
                 .rfind("HTTP/1.1 403", 0), 0u);
   EXPECT_EQ(send_request(port, "GET / HTTP/1.1\r\n" + host + "X: " + std::string(20000, 'a') + "\r\n\r\n").rfind("HTTP/1.1 431", 0), 0u);
+  // A connection that sends nothing (a browser's preconnect) does not hold up the others.
+  const int idle = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(static_cast<std::uint16_t>(port));
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(::connect(idle, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+  const auto t0 = std::chrono::steady_clock::now();
   const std::string state = send_request(port, "GET /api/state?token=" + token + " HTTP/1.1\r\n" + host + "\r\n");
   EXPECT_EQ(state.rfind("HTTP/1.1 200", 0), 0u) << state;
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), kSocketTimeoutS / 2.0);
+  ::close(idle);
   const std::string body = R"({"photo":1,"point_id":4,"u_px":100.25,"v_px":200.5,"refine":"none"})";
   const std::string marked = send_request(port, "POST /api/mark?token=" + token + " HTTP/1.1\r\n" + host +
                                                 "Content-Type: application/json\r\nContent-Length: " + std::to_string(body.size()) +
