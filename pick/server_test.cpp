@@ -352,6 +352,12 @@ TEST(PickSession, NamesBadInput) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("broken.jpg"), std::string::npos) << e.what();
   }
+  try {
+    Session s(job.photos, std::nullopt, std::nullopt, (job.dir.path() / "no/such/folder/c.csv").string(), {});
+    FAIL() << "accepted an output in a folder that does not exist";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("no/such/folder"), std::string::npos) << e.what();
+  }
   EXPECT_FALSE(fs::exists(job.output));
 }
 

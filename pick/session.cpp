@@ -1,9 +1,13 @@
 #include "pick/session.hpp"
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
-#include <filesystem>
+#include <cstring>
 #include <exception>
+#include <filesystem>
 #include <limits>
 #include <set>
 
@@ -199,6 +203,14 @@ Session::Session(std::vector<std::string> photos, const std::optional<std::strin
     }
   }
 
+  // The file is rewritten after every mark: a folder that cannot take it is said now, not at the
+  // first click.
+  {
+    const fs::path folder = fs::path(observations_path_).parent_path().empty() ? fs::path(".") : fs::path(observations_path_).parent_path();
+    std::error_code ec;
+    if (!fs::is_directory(folder, ec)) throw InputError(observations_path_, 0, "its folder " + folder.string() + " does not exist");
+    if (::access(folder.c_str(), W_OK) != 0) throw InputError(observations_path_, 0, "cannot write in " + folder.string() + ": " + std::strerror(errno));
+  }
   if (fs::exists(observations_path_)) {
     auto in = tool::open_input(observations_path_);
     observations_ = read_observations(*in, tool::source_name(observations_path_));
