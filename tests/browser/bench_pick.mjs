@@ -3,24 +3,13 @@
 // both panes showing their full-size photo, decoded), to every thumbnail decoded, and the time to
 // switch a pane to another full-size photo (mean of SWITCHES switches). Not a test: figures only.
 // Usage: node bench_pick.mjs URL [SWITCHES]
-import { createRequire } from 'node:module';
-import { mkdtempSync, rmSync } from 'node:fs';
-import { tmpdir } from 'node:os';
-import path from 'node:path';
+import { launchChromium } from './chromium.mjs';
 
 const [url, switchesText] = process.argv.slice(2);
 const switches = Number(switchesText || 10);
-const require = createRequire(import.meta.url);
-const { chromium } = require('playwright-core');
-const profile = mkdtempSync(path.join(tmpdir(), 'photomill-chromium-'));
-const context = await chromium.launchPersistentContext(profile, {
-  executablePath: process.env.PHOTOMILL_CHROMIUM || '/usr/bin/chromium',
-  headless: true,
-  viewport: { width: 1600, height: 1000 },
-  args: ['--headless', '--no-sandbox', '--disable-gpu', '--no-first-run', '--disable-background-networking'],
-});
+const browser = await launchChromium('bench_pick', { width: 1600, height: 1000 });
 try {
-  const page = context.pages()[0] || await context.newPage();
+  const { page } = browser;
   const t0 = Date.now();
   await page.goto(url, { waitUntil: 'commit' });
   await page.waitForFunction(() => window.pick && window.pick.ready, null, { timeout: 60000, polling: 10 });
@@ -36,6 +25,5 @@ try {
   const perSwitch = (Date.now() - t1) / switches;
   console.log(`photos ${n} ready_ms ${ready} thumbnails_ms ${thumbs} switch_ms ${perSwitch.toFixed(1)}`);
 } finally {
-  await context.close();
-  rmSync(profile, { recursive: true, force: true });
+  await browser.close();
 }

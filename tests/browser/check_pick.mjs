@@ -9,32 +9,15 @@
 // Usage: node check_pick.mjs URL TRUTH_OBSERVATIONS.csv IDS IMAGES ZOOM SCREENSHOT.png
 //   IDS: comma-separated point ids; IMAGES: comma-separated image names as pick shows them.
 // Exit 0 ok, 1 a check failed, 77 skipped (no Chromium or playwright-core; never when CI is set).
-import { createRequire } from 'node:module';
-import { existsSync, mkdtempSync, readFileSync, rmSync } from 'node:fs';
-import { tmpdir } from 'node:os';
+import { readFileSync } from 'node:fs';
 import path from 'node:path';
+
+import { launchChromium } from './chromium.mjs';
 
 const [url, truthPath, idList, imageList, zoomText, screenshot] = process.argv.slice(2);
 if (!screenshot) {
   console.error('usage: node check_pick.mjs URL TRUTH.csv IDS IMAGES ZOOM SCREENSHOT.png');
   process.exit(2);
-}
-const chromiumPath = process.env.PHOTOMILL_CHROMIUM || '/usr/bin/chromium';
-const skip = (why) => {
-  if (process.env.CI) {
-    console.error(`check_pick: ${why} (CI is set: the browser check must run)`);
-    process.exit(1);
-  }
-  console.error(`check_pick: skipped: ${why} (scripts/install-deps.sh --tests installs it)`);
-  process.exit(77);
-};
-if (!existsSync(chromiumPath)) skip(`no Chromium at ${chromiumPath}`);
-let chromium;
-try {
-  const require = createRequire(import.meta.url);
-  ({ chromium } = require('playwright-core'));
-} catch {
-  skip('no playwright-core in tests/browser/node_modules');
 }
 
 const ids = idList.split(',').map(Number);
@@ -76,17 +59,10 @@ const rand = () => ((seed = (Math.imul(seed, 1664525) + 1013904223) >>> 0) / 429
 const problems = [];
 const notes = [];
 const figures = { epipolar_px: [], predicted_px: [], clicked_px: [] };
-const profile = mkdtempSync(path.join(tmpdir(), 'photomill-chromium-'));
-let context;
+let browser;
 try {
-  context = await chromium.launchPersistentContext(profile, {
-    executablePath: chromiumPath,
-    headless: true,
-    viewport: { width: 1600, height: 1000 },
-    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
-           '--disable-background-networking', '--disable-component-update', '--disable-sync'],
-  });
-  const page = context.pages()[0] || await context.newPage();
+  browser = await launchChromium('check_pick', { width: 1600, height: 1000 });
+  const { page } = browser;
   page.on('console', (m) => { if (m.type() === 'error') problems.push(`console error: ${m.text()}`); });
   page.on('pageerror', (e) => problems.push(`page error: ${e.message}`));
   const origin = new URL(url).origin;
@@ -191,8 +167,7 @@ try {
 } catch (e) {
   problems.push(`the browser run failed: ${e.message.split('\n')[0]}`);
 } finally {
-  if (context) await context.close();
-  rmSync(profile, { recursive: true, force: true });
+  if (browser) await browser.close();
 }
 for (const n of notes) console.error(`check_pick: note: ${n}`);
 for (const p of problems) console.error(`check_pick: ${p}`);

@@ -5,33 +5,16 @@
 // digits).
 // Usage: node check_report.mjs REPORT.html JOB_FOLDER
 // Exit 0 ok, 1 a check failed, 77 skipped (no Chromium or playwright-core; never when CI is set).
-import { createRequire } from 'node:module';
-import { existsSync, mkdtempSync, readFileSync, rmSync } from 'node:fs';
-import { tmpdir } from 'node:os';
+import { readFileSync } from 'node:fs';
 import path from 'node:path';
 import { pathToFileURL } from 'node:url';
+
+import { launchChromium } from './chromium.mjs';
 
 const [reportPath, jobDir] = process.argv.slice(2);
 if (!reportPath || !jobDir) {
   console.error('usage: node check_report.mjs REPORT.html JOB_FOLDER');
   process.exit(2);
-}
-const chromiumPath = process.env.PHOTOMILL_CHROMIUM || '/usr/bin/chromium';
-const skip = (why) => {
-  if (process.env.CI) {
-    console.error(`check_report: ${why} (CI is set: the browser check must run)`);
-    process.exit(1);
-  }
-  console.error(`check_report: skipped: ${why} (scripts/install-deps.sh --tests installs it)`);
-  process.exit(77);
-};
-if (!existsSync(chromiumPath)) skip(`no Chromium at ${chromiumPath}`);
-let chromium;
-try {
-  const require = createRequire(import.meta.url);
-  ({ chromium } = require('playwright-core'));
-} catch {
-  skip('no playwright-core in tests/browser/node_modules');
 }
 
 // The headline figures every complete job's page must show (a subset of report/report.cpp's list:
@@ -48,16 +31,10 @@ const required = [
 const pictures = ['calib.png', 'cloud.png', 'surface.png', 'path.png'];
 
 const problems = [];
-const profile = mkdtempSync(path.join(tmpdir(), 'photomill-chromium-'));
-let context;
+let browser;
 try {
-  context = await chromium.launchPersistentContext(profile, {
-    executablePath: chromiumPath,
-    headless: true,
-    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
-           '--disable-background-networking', '--disable-component-update', '--disable-sync'],
-  });
-  const page = context.pages()[0] || await context.newPage();
+  browser = await launchChromium('check_report');
+  const { page } = browser;
   page.on('console', (m) => { if (m.type() === 'error') problems.push(`console error: ${m.text()}`); });
   page.on('pageerror', (e) => problems.push(`page error: ${e.message}`));
   page.on('requestfailed', (r) => problems.push(`request failed: ${r.url().slice(0, 80)}`));
@@ -107,8 +84,7 @@ try {
 } catch (e) {
   problems.push(`the browser run failed: ${e.message.split('\n')[0]}`);
 } finally {
-  if (context) await context.close();
-  rmSync(profile, { recursive: true, force: true });
+  if (browser) await browser.close();
 }
 for (const p of problems) console.error(`check_report: ${p}`);
 process.exit(problems.length ? 1 : 0);
