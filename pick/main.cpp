@@ -56,6 +56,7 @@ int main(int argc, char** argv) {
         std::cout << app.url() << std::endl;
         log::info("open " + app.url() + " in a browser on this machine; the page's Finish button (or Ctrl+C) ends");
         server.serve([&](const pick::HttpRequest& r, bool* stop) { return app.handle(r, stop); });
+        session.flush();  // a save that failed last (a full disk) is tried again, or is this run's error: exit 1
         log::info(output + " holds " + std::to_string(session.observations().size()) + " observations");
       });
 }

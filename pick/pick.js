@@ -229,8 +229,8 @@
   }
   async function finish() {
     try {
-      const text = await fetch('/api/quit?token=' + encodeURIComponent(token), { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: '{}' }).then((r) => r.text());
-      status(text.trim(), false);
+      const r = await fetch('/api/quit?token=' + encodeURIComponent(token), { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: '{}' });
+      status((await r.text()).trim(), !r.ok);
       pick.finished = true;
     } catch (e) { status(e.message, true); }
   }

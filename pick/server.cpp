@@ -168,8 +168,10 @@ HttpResponse App::handle(const HttpRequest& r, bool* stop) {
     } else if (post && r.path == "/api/undo") {
       response = undo();
     } else if (post && r.path == "/api/quit") {
-      *stop = true;
-      response = text(200, "pick: finished; " + session_.observations_path() + " holds every mark");
+      *stop = true;  // main() saves again if the last save failed, and fails naming the file if it cannot
+      response = session_.saved() ? text(200, "pick: finished; " + session_.observations_path() + " holds every mark")
+                                  : text(500, "pick: the last marks are not saved in " + session_.observations_path() +
+                                                  ": pick tries once more and says on its stderr whether it could");
     } else if (r.path == "/" || r.path == "/pick.js" || r.path == "/pick.css" || r.path.rfind("/api/", 0) == 0) {
       return text(405, "method not allowed");
     } else {

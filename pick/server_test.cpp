@@ -177,6 +177,33 @@ TEST_F(PickApp, SavesEveryMarkAtOnceAndUndoesIt) {
   EXPECT_EQ(test::read_file(job.output).rfind("# photomill run=", 0), 0u);
 }
 
+TEST(PickSession, AFailedSaveIsSaidAndFinishingFailsUnlessASaveSucceeds) {
+  Job job;
+  const fs::path folder = job.dir.path() / "out";
+  fs::create_directories(folder);
+  Session session(job.photos, std::nullopt, std::nullopt, (folder / "c.csv").string(), {});
+  App app(session, kToken, kPort, Refine::None);
+  bool stop = false;
+  const auto mark = [&](PointId id) {
+    return app.handle(request("POST", with_token("/api/mark"),
+                              R"({"photo":0,"point_id":)" + std::to_string(id) + R"(,"u_px":10,"v_px":10})"), &stop);
+  };
+  EXPECT_EQ(mark(1).status, 200);
+  fs::remove_all(folder);  // the folder gone (a disk unmounted): the next save fails
+  const HttpResponse failed = mark(2);
+  EXPECT_EQ(failed.status, 500);
+  EXPECT_NE(failed.body.find("c.csv"), std::string::npos) << failed.body;
+  EXPECT_FALSE(session.saved());
+  EXPECT_EQ(app.handle(request("POST", with_token("/api/quit"), "{}"), &stop).status, 500);
+  EXPECT_TRUE(stop);
+  EXPECT_THROW(session.flush(), InputError);  // what main() does after the server stops: exit 1
+  fs::create_directories(folder);             // back: the retry saves every mark
+  session.flush();
+  EXPECT_TRUE(session.saved());
+  std::ifstream in(folder / "c.csv");
+  EXPECT_EQ(read_observations(in, "c.csv").size(), 2u);
+}
+
 TEST_F(PickApp, RefusesMarksOutsideThePhotoAndMalformedBodies) {
   EXPECT_EQ(mark(0, 1, {-3, 5}).status, 422);
   EXPECT_EQ(mark(0, 1, {5, 1500}).status, 422);

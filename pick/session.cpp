@@ -350,10 +350,12 @@ bool Session::undo() {
 }
 
 void Session::save() const {
+  saved_ = false;
   tool::OutputFile out(observations_path_);
   write_observations(out.stream(), observations_);
   out.commit();
   tool::publish_committed();
+  saved_ = true;
 }
 
 PointId Session::next_free_id() const {

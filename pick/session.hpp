@@ -131,6 +131,12 @@ public:
   // Undoes the last mark or removal; false if there is nothing to undo. Saves.
   bool undo();
   std::size_t undo_depth() const { return history_.size(); }
+  // False after a save failed (a full disk, the folder gone) until one succeeds.
+  bool saved() const { return saved_; }
+  // Saves again if the last save failed; throws InputError naming the file if it fails again.
+  void flush() const {
+    if (!saved_) save();
+  }
 
   std::vector<PointSummary> points() const;
   Guide guide(PointId point_id, std::size_t target) const;
@@ -152,6 +158,7 @@ private:
   std::vector<Observation> observations_;           // the file's rows, in order
   std::vector<std::vector<Observation>> history_;   // earlier states, for undo
   mutable std::map<std::size_t, cv::Mat> grey_;     // decoded photos
+  mutable bool saved_ = true;                       // the file holds observations_
 };
 
 }  // namespace photomill::pick
