@@ -218,6 +218,13 @@ Session::Session(std::vector<std::string> photos, const std::optional<std::strin
   }
 }
 
+std::optional<std::size_t> Session::photo_index(const std::string& image) const {
+  for (std::size_t i = 0; i < photos_.size(); ++i) {
+    if (photos_[i].path == image) return i;
+  }
+  return std::nullopt;
+}
+
 const cv::Mat& Session::grey(std::size_t photo) const {
   auto it = grey_.find(photo);
   if (it == grey_.end()) {
@@ -263,10 +270,10 @@ MarkResult Session::mark(std::size_t photo, PointId point_id, const Eigen::Vecto
     std::size_t reference_photo = 0;
     for (const auto& o : observations_) {
       if (o.point_id != point_id || o.image == p.path) continue;
-      const auto it = std::find_if(photos_.begin(), photos_.end(), [&](const Photo& q) { return q.path == o.image; });
-      if (it == photos_.end()) continue;
+      const auto index = photo_index(o.image);
+      if (!index) continue;
       reference = &o;
-      reference_photo = static_cast<std::size_t>(it - photos_.begin());
+      reference_photo = *index;
       break;
     }
     if (!reference) {
@@ -374,8 +381,9 @@ std::optional<Eigen::Vector3d> Session::triangulate(PointId point_id, std::strin
   std::vector<triangulate::PointView> views;
   for (const auto& o : observations_) {
     if (o.point_id != point_id) continue;
-    const auto it = std::find_if(photos_.begin(), photos_.end(), [&](const Photo& q) { return q.path == o.image; });
-    if (it == photos_.end() || !it->oriented) continue;
+    const auto index = photo_index(o.image);
+    if (!index || !photos_[*index].oriented) continue;
+    const auto it = photos_.begin() + static_cast<std::ptrdiff_t>(*index);
     const auto xy = geometry::undistort(*camera_, {o.u_px, o.v_px});
     if (!xy) continue;
     triangulate::PointView v;
@@ -416,8 +424,9 @@ std::vector<PointSummary> Session::points() const {
     s.xyz = triangulate(id, &s.triangulation_note);
     if (s.xyz) {
       for (const auto& o : s.observations) {
-        const auto it = std::find_if(photos_.begin(), photos_.end(), [&](const Photo& q) { return q.path == o.image; });
-        if (!it->oriented) continue;
+        const auto index = photo_index(o.image);
+        if (!index || !photos_[*index].oriented) continue;
+        const auto it = photos_.begin() + static_cast<std::ptrdiff_t>(*index);
         const auto uv = geometry::project_point(*camera_, it->cam_from_world.data(), *s.xyz);
         if (uv) s.residuals.push_back({o.image, (*uv - Eigen::Vector2d(o.u_px, o.v_px)).norm()});
       }
@@ -438,8 +447,9 @@ Guide Session::guide(PointId point_id, std::size_t target) const {
   const Eigen::Vector3d target_centre = geometry::centre_of(t.cam_from_world);
   for (const auto& o : observations_) {
     if (o.point_id != point_id || o.image == t.path) continue;
-    const auto it = std::find_if(photos_.begin(), photos_.end(), [&](const Photo& q) { return q.path == o.image; });
-    if (it == photos_.end() || !it->oriented) continue;
+    const auto index = photo_index(o.image);
+    if (!index || !photos_[*index].oriented) continue;
+    const auto it = photos_.begin() + static_cast<std::ptrdiff_t>(*index);
     const auto xy = geometry::undistort(*camera_, {o.u_px, o.v_px});
     if (!xy) continue;
     // The ray X(s) = C + s d of the observation (d: the unit direction R^T (x, y, 1)), sampled at

@@ -148,6 +148,8 @@ public:
   const cv::Mat& grey(std::size_t photo) const;
 
 private:
+  // The index of the photo whose name (as given) is `image`; nullopt for another photo's row.
+  std::optional<std::size_t> photo_index(const std::string& image) const;
   void save() const;
   std::optional<Eigen::Vector3d> triangulate(PointId point_id, std::string* note) const;
 
