@@ -31,6 +31,7 @@
 #include "formats/tool.hpp"
 #include "tests/run_tool.hpp"
 #include "tools/synth/dataset.hpp"
+#include "tools/synth/surface_distance.hpp"
 
 namespace fs = std::filesystem;
 using namespace photomill;
@@ -271,50 +272,6 @@ double distance_to_truth(const synth::HeightField& h, const Eigen::Vector3d& c, 
   return std::sqrt(d2);
 }
 
-// Distance from c to the true part's surface (not the solid): the graph of H(x, y) = h(x, y) over
-// the part's rectangle and 0 on the plate and beyond, with a walled part's faces (x = x_min...,
-// from z = 0 up to the top at the wall). The vertical distance |c.z - H(c.x, c.y)| bounds it
-// from above; when that is more than `within_mm`, the graph is sampled on a kPointGridMm grid
-// over |x - c.x|, |y - c.y| <= kPointReachMm (overestimating the distance by about t^2 / (2 d),
-// t <= 0.036 mm the offset of the nearest sample, d the distance: under 1 um for d >= 1 mm) and
-// the walls' faces are measured exactly. Returns at most kPointReachMm when the vertical distance
-// is larger and nothing nearer was found, so it is exact up to the reach.
-constexpr double kPointGridMm = 0.05, kPointReachMm = 3;
-double distance_to_surface(const synth::HeightField& h, const Eigen::Vector3d& c, double within_mm) {
-  auto H = [&](double x, double y) { return h.contains(x, y) || (h.walled() && x >= h.x_min_mm && x <= h.x_max_mm &&
-                                                                   y >= h.y_min_mm && y <= h.y_max_mm)
-                                                ? h.height_mm(x, y)
-                                                : 0.0; };
-  double d = std::abs(c.z() - H(c.x(), c.y()));
-  if (d <= within_mm) return d;
-  // The nearest point of the graph is no farther than d in x, y either.
-  const double reach = std::min(kPointReachMm, d);
-  for (double dx = -reach; dx <= reach; dx += kPointGridMm) {
-    for (double dy = -reach; dy <= reach; dy += kPointGridMm) {
-      const double x = c.x() + dx, y = c.y() + dy;
-      d = std::min(d, std::sqrt(dx * dx + dy * dy + (c.z() - H(x, y)) * (c.z() - H(x, y))));
-    }
-  }
-  if (h.walled()) {
-    // A face x = x0, y in [y_min, y_max], z in [0, f(x0, y)]: the top at the wall varies along
-    // it, so its nearest point is sampled along y (same grid) with z clamped.
-    for (const bool along_x : {false, true}) {
-      const double lo = along_x ? h.x_min_mm : h.y_min_mm, hi = along_x ? h.x_max_mm : h.y_max_mm;
-      for (const double at : along_x ? std::vector<double>{h.y_min_mm, h.y_max_mm} : std::vector<double>{h.x_min_mm, h.x_max_mm}) {
-        const double across = (along_x ? c.y() : c.x()) - at;
-        if (std::abs(across) >= d) continue;
-        const double centre = along_x ? c.x() : c.y();
-        for (double s = std::max(lo, centre - reach); s <= std::min(hi, centre + reach); s += kPointGridMm / 2) {
-          const double top = along_x ? h.wall_top_mm(s, at) : h.wall_top_mm(at, s);
-          const double dz = c.z() < 0 ? -c.z() : std::max(0.0, c.z() - top);
-          d = std::min(d, std::sqrt(across * across + (centre - s) * (centre - s) + dz * dz));
-        }
-      }
-    }
-  }
-  return d;
-}
-
 // Issue 24: "no point of the photo cloud more than 1 mm from the truth reaches the fit: each is
 // removed before fitsurf or reported as an outlier by it (--residuals)". Counts the cloud's
 // points (control points left out) farther than kFarPointMm from the true surface, and of
@@ -335,7 +292,7 @@ double top_height_mm(const synth::HeightField& h, double x, double y) {
 }
 
 // --cloud-distances FILE: every point of the cloud (control points left out) with its distance
-// to the true surface (exact up to kPointReachMm, at least that beyond; below 0.01 mm the
+// to the true surface (exact up to synth::kPointReachMm, at least that beyond; below 0.01 mm the
 // vertical distance, an upper bound) and its vertical offset
 // from the top (top_height_mm; empty over the plate), for studying what reaches the fit.
 void write_cloud_distances(const fs::path& file, const synth::HeightField& h, const PointCloud& cloud) {
@@ -353,7 +310,7 @@ void write_cloud_distances(const fs::path& file, const synth::HeightField& h, co
     const double top = top_height_mm(h, p.x(), p.y());
     out << (ids ? ids->values[k] : NAN) << "," << p.x() << "," << p.y() << "," << p.z() << ","
         << (views ? views->values[k] : NAN) << "," << (sigma ? sigma->values[k] : NAN) << ","
-        << distance_to_surface(h, p, 0.01) << ",";
+        << synth::distance_to_surface(h, p, 0.01) << ",";
     if (std::isfinite(top)) out << p.z() - top;
     out << "\n";
   }
@@ -370,7 +327,7 @@ void cloud_figures(Report& r, const synth::HeightField& h, const PointCloud& clo
       if (control && control->values[k] != 0) continue;
       if (weight && !(weight->values[k] > 0)) continue;
       ++n;
-      const double d = distance_to_surface(h, pc.points_mm[k], kFarPointMm);
+      const double d = synth::distance_to_surface(h, pc.points_mm[k], kFarPointMm);
       if (!(d > kFarPointMm)) continue;
       ++far_n;
       if (views && views->values[k] == 2) ++two_view_far;

@@ -77,6 +77,7 @@ std::vector<std::string> dictionary_names() {
 }
 int dictionary_id(const std::string& name) { return dictionary_info(name).id; }
 int dictionary_size(const std::string& name) { return dictionary_info(name).size; }
+int dictionary_bits(const std::string& name) { return dictionary_info(name).bits; }
 
 Eigen::Vector2d PartScene::corner_xy(const Marker& m, int corner) {
   const double s = m.size_mm;

@@ -21,8 +21,10 @@ namespace photomill::synth {
 std::vector<std::string> dictionary_names();
 // OpenCV's cv::aruco::PREDEFINED_DICTIONARY_NAME value; throws std::invalid_argument.
 int dictionary_id(const std::string& name);
-// Number of markers in the dictionary and bits per side (4 for 4X4).
+// Number of markers in the dictionary.
 int dictionary_size(const std::string& name);
+// Bits per side (4 for 4X4): a marker is bits + 2 cells wide, its black border included.
+int dictionary_bits(const std::string& name);
 
 // A square ArUco marker printed flat in the plate plane (z = 0) or draped vertically onto the
 // part (each point (x, y) of the print goes to (x, y, h(x, y))). Its corners, in OpenCV's order
