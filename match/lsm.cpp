@@ -30,33 +30,9 @@ inline void keys_weights(double t, double w[4], double dw[4]) {
   }
 }
 
-// Cubic-convolution sample of a CV_32F image at (x, y), OpenCV convention (pixel centres at
-// integers), with its gradient; false if the 4x4 neighbourhood leaves the image.
-bool sample_with_gradient(const cv::Mat& im, double x, double y, double& v, double& gx, double& gy) {
-  if (!(x >= 1 && y >= 1 && x < im.cols - 2 && y < im.rows - 2)) return false;
-  const int x0 = static_cast<int>(std::floor(x));
-  const int y0 = static_cast<int>(std::floor(y));
-  double wx[4], dwx[4], wy[4], dwy[4];
-  keys_weights(x - x0, wx, dwx);
-  keys_weights(y - y0, wy, dwy);
-  v = gx = gy = 0;
-  for (int j = 0; j < 4; ++j) {
-    const float* row = im.ptr<float>(y0 - 1 + j) + (x0 - 1);
-    double r = 0, dr = 0;
-    for (int i = 0; i < 4; ++i) {
-      r += wx[i] * row[i];
-      dr += dwx[i] * row[i];
-    }
-    v += wy[j] * r;
-    gx += wy[j] * dr;
-    gy += dwy[j] * r;
-  }
-  return true;
-}
-
 bool sample(const cv::Mat& im, double x, double y, double& v) {
   double gx, gy;
-  return sample_with_gradient(im, x, y, v, gx, gy);
+  return sample_cubic(im, x, y, v, gx, gy);
 }
 
 // Pearson correlation of two equally long sample vectors (0 if either is flat).
@@ -109,6 +85,29 @@ std::optional<double> window_correlation_of_map(const cv::Mat& f, const Eigen::V
 }
 
 }  // namespace
+
+bool sample_cubic(const cv::Mat& im, double x, double y, double& v, double& gx, double& gy) {
+  if (!(x >= 1 && y >= 1 && x < im.cols - 2 && y < im.rows - 2)) return false;
+  const int x0 = static_cast<int>(std::floor(x));
+  const int y0 = static_cast<int>(std::floor(y));
+  double wx[4], dwx[4], wy[4], dwy[4];
+  keys_weights(x - x0, wx, dwx);
+  keys_weights(y - y0, wy, dwy);
+  v = gx = gy = 0;
+  for (int j = 0; j < 4; ++j) {
+    const float* row = im.ptr<float>(y0 - 1 + j) + (x0 - 1);
+    double r = 0, dr = 0;
+    for (int i = 0; i < 4; ++i) {
+      r += wx[i] * row[i];
+      dr += dwx[i] * row[i];
+    }
+    v += wy[j] * r;
+    gx += wy[j] * dr;
+    gy += dwy[j] * r;
+  }
+  return true;
+}
+
 
 const char* to_string(LsmFailure f) {
   switch (f) {
@@ -203,7 +202,7 @@ std::optional<LsmResult> lsm_align(const cv::Mat& f, const Eigen::Vector2d& ref_
         const Eigen::Vector3d m(d.x() * d.x(), d.x() * d.y(), d.y() * d.y());
         const Eigen::Vector2d x = B * d + t + C * m;
         double v, gx, gy;
-        if (!sample_with_gradient(g, x.x(), x.y(), v, gx, gy)) return fail(LsmFailure::Border);
+        if (!sample_cubic(g, x.x(), x.y(), v, gx, gy)) return fail(LsmFailure::Border);
         Vec J = Vec::Zero(n);
         J.head<8>() << r1 * gx * d.x(), r1 * gx * d.y(), r1 * gy * d.x(), r1 * gy * d.y(), r1 * gx, r1 * gy, 1.0, v;
         if (n == 14) J.tail<6>() << r1 * gx * m, r1 * gy * m;

@@ -67,6 +67,11 @@ std::optional<LsmResult> lsm_align(const cv::Mat& f, const Eigen::Vector2d& ref_
 
 int half_window_for(double ref_size_px, const LsmOptions& o);
 
+// Cubic-convolution sample of a single-channel CV_32F image at (x, y), OpenCV convention (pixel
+// centres at integers), with its gradient (Keys' kernel, a = -0.5, and its derivative: bilinear
+// samples would lock matches towards whole pixels); false if the 4x4 neighbourhood leaves the image.
+bool sample_cubic(const cv::Mat& im, double x, double y, double& v, double& gx, double& gy);
+
 // Normalised cross-correlation of the reference window and the search window mapped by (A, t);
 // nullopt where a sample falls outside an image. Used to pick the start among candidates, on
 // every `stride`-th pixel of the window (2: a quarter of the work, enough to rank them).
