@@ -40,7 +40,7 @@ TEST_P(Cli, GoldenCase) {
   }
 }
 
-const std::vector<std::string> kStages{"calib", "detect", "match", "triangulate", "fitsurf", "toolpath", "clpost", "targets", "report", "pick"};
+const std::vector<std::string> kStages{"calib", "detect", "match", "triangulate", "densify", "fitsurf", "toolpath", "clpost", "targets", "report", "pick"};
 
 // The contract every binary shares: --help (with the example) and --version exit 0 on stdout;
 // an unknown option is bad usage (exit 2) named on stderr.

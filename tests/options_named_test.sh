@@ -6,7 +6,7 @@
 # Usage: options_named_test.sh SOURCE_DIR
 set -euo pipefail
 cd "$1"
-tools=(calib detect match triangulate fitsurf toolpath report targets pick formats geometry)
+tools=(calib detect match triangulate densify fitsurf toolpath report targets pick formats geometry)
 mapfile -t sources < <(git ls-files -- "${tools[@]/%//*.cpp}" 2>/dev/null | grep -v '_test\.cpp$' ||
   find "${tools[@]}" -name '*.cpp' ! -name '*_test.cpp')
 mapfile -t tests < <(git ls-files -- '*_test.cpp' 'tests/*' 2>/dev/null ||

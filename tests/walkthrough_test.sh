@@ -24,7 +24,7 @@ prefix=$work/prefix
 
 # --- the install ------------------------------------------------------------------------------
 cmake --install "$build" --prefix "$prefix" >/dev/null
-tools=(calib clpost cutsim detect fitsurf match pick report rough targets toolpath triangulate)
+tools=(calib clpost cutsim densify detect fitsurf match pick report rough targets toolpath triangulate)
 installed=$(cd "$prefix/bin" && ls | sort | tr '\n' ' ')
 [ "$installed" = "${tools[*]} " ] || fail "$prefix/bin holds '$installed', not the user tools '${tools[*]}'"
 for f in share/photomill/Makefile.example share/photomill/data/demo/part_00.jpg \

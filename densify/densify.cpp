@@ -1,0 +1,345 @@
+#include "densify/densify.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <map>
+#include <queue>
+
+#include <opencv2/imgproc.hpp>
+
+#include "formats/error.hpp"
+#include "geometry/parallel.hpp"
+
+namespace photomill::densify {
+namespace {
+
+enum class CellState : unsigned char { Empty, Done, Occupied };
+
+struct Cell {
+  CellState state = CellState::Empty;
+  unsigned char attempts = 0;
+  bool expanded = false;      // an Occupied cell's plane was proposed to its neighbours
+  float correlation = 0;
+  Eigen::Vector3d plane = Eigen::Vector3d::Zero();  // reference frame
+};
+
+struct Candidate {
+  double priority;
+  int cell;
+  Eigen::Vector3d plane;
+  bool operator<(const Candidate& o) const { return priority < o.priority; }
+};
+
+// One accepted point, world frame.
+struct DensePoint {
+  Eigen::Vector3d xyz;
+  Eigen::Vector3d normal;
+  double sigma;
+  int views;
+  int ref;
+  double correlation;
+};
+
+// The plane n . X = 1 in the frame of the camera (R, t) through world point P with world normal N:
+// X_w = R^T (X_c - t), so N . R^T (X_c - t) = N . P, i.e. (R N) . X_c = N . P + (R N) . t.
+std::optional<Eigen::Vector3d> plane_in_camera(const Eigen::Matrix3d& R, const Eigen::Vector3d& t,
+                                               const Eigen::Vector3d& P, const Eigen::Vector3d& N) {
+  const Eigen::Vector3d Nc = R * N;
+  const double d = N.dot(P) + Nc.dot(t);
+  if (!(std::abs(d) > 1e-12)) return std::nullopt;
+  return Nc / d;
+}
+
+bool in_box(const std::array<double, 6>& b, const Eigen::Vector3d& p) {
+  return p.x() >= b[0] && p.y() >= b[1] && p.z() >= b[2] && p.x() <= b[3] && p.y() <= b[4] && p.z() <= b[5];
+}
+
+// Where the marker masks of each photo are 0: the quad of each marker's four corners, grown by
+// `margin` of its side about its centre.
+cv::Mat marker_mask(const std::vector<const Observation*>& obs, int width, int height, double margin) {
+  cv::Mat mask(height, width, CV_8U, cv::Scalar(255));
+  std::map<PointId, std::array<const Observation*, 4>> quads;
+  for (const Observation* o : obs) {
+    if (o->point_id < 0 || o->point_id >= kFirstClickedId) continue;
+    quads[o->point_id / 4][static_cast<std::size_t>(o->point_id % 4)] = o;
+  }
+  for (const auto& [id, q] : quads) {
+    if (!q[0] || !q[1] || !q[2] || !q[3]) continue;
+    Eigen::Vector2d c = Eigen::Vector2d::Zero();
+    for (const Observation* o : q) c += Eigen::Vector2d(o->u_px, o->v_px) / 4;
+    std::vector<cv::Point> poly;
+    for (const Observation* o : q) {
+      const Eigen::Vector2d p = c + (Eigen::Vector2d(o->u_px, o->v_px) - c) * (1 + 2 * margin);
+      poly.emplace_back(static_cast<int>(std::lround(p.x())), static_cast<int>(std::lround(p.y())));
+    }
+    cv::fillConvexPoly(mask, poly, cv::Scalar(0));
+  }
+  return mask;
+}
+
+double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::atan2(a.cross(b).norm(), a.dot(b)) * 180 / M_PI;
+}
+
+}  // namespace
+
+DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Progress& progress) {
+  const std::size_t n_views = in.poses.size();
+  if (in.photos.size() != n_views) throw std::logic_error("densify: one photo per pose");
+  const geometry::CameraModel& cam = in.camera;
+  DensifyResult result;
+  result.references.resize(n_views);
+
+  std::vector<PatchView> views(n_views);
+  std::vector<Eigen::Vector3d> centres(n_views);
+  for (std::size_t i = 0; i < n_views; ++i) {
+    views[i].grey = in.photos[i];
+    views[i].rotation = in.poses[i].rotation();
+    views[i].translation_mm = in.poses[i].cam_from_world_translation_mm;
+    centres[i] = in.poses[i].centre_mm();
+  }
+
+  // The box: given, or the sparse cloud's grown by box_margin.
+  std::vector<Eigen::Vector3d> sparse;
+  if (o.box) {
+    result.box = *o.box;
+    for (const auto& p : in.sparse.points_mm) {
+      if (p.allFinite() && in_box(result.box, p)) sparse.push_back(p);
+    }
+  } else {
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+    for (const auto& p : in.sparse.points_mm) {
+      if (!p.allFinite()) continue;
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+      sparse.push_back(p);
+    }
+    const Eigen::Vector3d grow = (hi - lo) * o.box_margin;
+    result.box = {lo.x() - grow.x(), lo.y() - grow.y(), lo.z() - grow.z(), hi.x() + grow.x(), hi.y() + grow.y(), hi.z() + grow.z()};
+  }
+  if (sparse.empty()) {
+    throw InputError(in.cloud_source, 0, "no point of the sparse cloud lies inside the box: nothing to seed the growth from");
+  }
+  // The scene's centre (median per axis) decides each reference's neighbour views.
+  Eigen::Vector3d centre;
+  for (int a = 0; a < 3; ++a) {
+    std::vector<double> v;
+    v.reserve(sparse.size());
+    for (const auto& p : sparse) v.push_back(p[a]);
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+    centre[a] = v[v.size() / 2];
+  }
+
+  // Masks per photo.
+  std::vector<std::vector<const Observation*>> obs_of(n_views);
+  {
+    std::map<std::string, std::size_t> index;
+    for (std::size_t i = 0; i < n_views; ++i) index[in.poses[i].image] = i;
+    for (const auto& ob : in.observations) {
+      if (const auto it = index.find(ob.image); it != index.end()) obs_of[it->second].push_back(&ob);
+    }
+  }
+
+  const PatchMatcher matcher(cam, o.patch);
+  const double s = o.spacing_px;
+  const int threads = geometry::thread_count(o.threads);
+  std::vector<DensePoint> points;
+
+  for (std::size_t ref = 0; ref < n_views; ++ref) {
+    ReferenceStats& st = result.references[ref];
+    const cv::Mat& f = views[ref].grey;
+    const Eigen::Matrix3d& R = views[ref].rotation;
+    const Eigen::Vector3d& t = views[ref].translation_mm;
+    // Neighbours: nearest first by the angle at the scene's centre, within the angle range.
+    {
+      std::vector<std::pair<double, int>> by_angle;
+      for (std::size_t j = 0; j < n_views; ++j) {
+        if (j == ref) continue;
+        const double a = angle_deg(centres[ref] - centre, centres[j] - centre);
+        if (a >= o.min_angle_deg && a <= o.max_angle_deg) by_angle.emplace_back(a, static_cast<int>(j));
+      }
+      std::sort(by_angle.begin(), by_angle.end());
+      for (const auto& [a, j] : by_angle) {
+        if (static_cast<int>(st.neighbours.size()) < o.max_views) st.neighbours.push_back(j);
+      }
+    }
+    if (static_cast<int>(st.neighbours.size()) < o.patch.min_views - 1) {
+      if (progress) progress("photo " + in.poses[ref].image + ": too few neighbour views, not a reference");
+      continue;
+    }
+    const cv::Mat mask = marker_mask(obs_of[ref], f.cols, f.rows, o.marker_margin);
+    const int gw = static_cast<int>(f.cols / s), gh = static_cast<int>(f.rows / s);
+    std::vector<Cell> cells(static_cast<std::size_t>(gw) * gh);
+    auto cell_centre = [&](int c) {
+      return Eigen::Vector2i(static_cast<int>(std::lround((c % gw + 0.5) * s - 0.5)), static_cast<int>(std::lround((c / gw + 0.5) * s - 0.5)));
+    };
+    auto cell_of = [&](const Eigen::Vector2d& px) -> int {
+      const int cx = static_cast<int>(std::floor((px.x() + 0.5) / s)), cy = static_cast<int>(std::floor((px.y() + 0.5) / s));
+      if (cx < 0 || cy < 0 || cx >= gw || cy >= gh) return -1;
+      return cy * gw + cx;
+    };
+    auto project = [&](const Eigen::Vector3d& X, Eigen::Vector3d* Xc) -> std::optional<Eigen::Vector2d> {
+      *Xc = R * X + t;
+      if (!(Xc->z() > 0)) return std::nullopt;
+      double u, v;
+      geometry::distort_to_pixel(geometry::shape_of(cam), cam.params.data(), Xc->x() / Xc->z(), Xc->y() / Xc->z(), &u, &v);
+      return Eigen::Vector2d(u, v);
+    };
+    // Cells holding a point of an earlier reference (facing this camera).
+    for (const DensePoint& p : points) {
+      Eigen::Vector3d Xc;
+      const auto px = project(p.xyz, &Xc);
+      if (!px) continue;
+      if (!(p.normal.dot(centres[ref] - p.xyz) > 0)) continue;
+      const int c = cell_of(*px);
+      if (c < 0 || cells[c].state != CellState::Empty) continue;
+      const auto plane = plane_in_camera(R, t, p.xyz, p.normal);
+      if (!plane) continue;
+      cells[c].state = CellState::Occupied;
+      cells[c].plane = *plane;
+      cells[c].correlation = static_cast<float>(p.correlation);
+      ++st.occupied;
+    }
+    // Seeds: the sparse points seen in this photo, each with the plane facing the camera.
+    const int tiles_x = (gw + o.tile_cells - 1) / o.tile_cells, tiles_y = (gh + o.tile_cells - 1) / o.tile_cells;
+    auto tile_of = [&](int c) { return (c / gw) / o.tile_cells * tiles_x + (c % gw) / o.tile_cells; };
+    std::vector<std::vector<Candidate>> seeds(static_cast<std::size_t>(tiles_x) * tiles_y);
+    for (const auto& X : sparse) {
+      Eigen::Vector3d Xc;
+      const auto px = project(X, &Xc);
+      if (!px) continue;
+      const int c = cell_of(*px);
+      if (c < 0) continue;
+      seeds[tile_of(c)].push_back({-1.0, c, Xc / Xc.squaredNorm()});
+      ++st.seeds;
+    }
+
+    // Grows the cells of one tile from its candidates; returns the tile's accepted points.
+    struct TileOut {
+      std::vector<DensePoint> points;
+      ReferenceStats stats;
+    };
+    auto grow = [&](int tile, std::vector<Candidate> start, TileOut* out) {
+      const int tx0 = (tile % tiles_x) * o.tile_cells, ty0 = (tile / tiles_x) * o.tile_cells;
+      const int tx1 = std::min(gw, tx0 + o.tile_cells), ty1 = std::min(gh, ty0 + o.tile_cells);
+      std::priority_queue<Candidate> queue(std::less<Candidate>(), std::move(start));
+      auto propose = [&](int c, const Eigen::Vector3d& plane, double priority) {
+        const int cx = c % gw, cy = c / gw;
+        const int nb[4][2] = {{cx - 1, cy}, {cx + 1, cy}, {cx, cy - 1}, {cx, cy + 1}};
+        for (const auto& q : nb) {
+          if (q[0] < tx0 || q[1] < ty0 || q[0] >= tx1 || q[1] >= ty1) continue;
+          const int nc = q[1] * gw + q[0];
+          if (cells[nc].state == CellState::Done || cells[nc].attempts >= o.max_attempts) continue;
+          queue.push({priority, nc, plane});
+        }
+      };
+      PatchResult r;
+      while (!queue.empty()) {
+        const Candidate cand = queue.top();
+        queue.pop();
+        Cell& cell = cells[cand.cell];
+        if (cell.state == CellState::Done || cell.attempts >= o.max_attempts) continue;
+        const Eigen::Vector2i px = cell_centre(cand.cell);
+        if (cell.state == CellState::Occupied) {
+          if (!cell.expanded) {
+            cell.expanded = true;
+            propose(cand.cell, cell.plane, cell.correlation);
+          }
+          // Measured again only if the candidate lies well in front of the earlier point (which
+          // the reference may not see).
+          const auto ray = geometry::undistort(cam, px.cast<double>());
+          if (!ray) continue;
+          const Eigen::Vector3d r(ray->x(), ray->y(), 1);
+          if (!(cand.plane.dot(r) > cell.plane.dot(r) * 1.02)) continue;
+        }
+        if (mask.at<unsigned char>(px.y(), px.x()) == 0) {
+          cell.attempts = static_cast<unsigned char>(o.max_attempts);
+          continue;
+        }
+        ++cell.attempts;
+        ++out->stats.measured;
+        const PatchFailure why = matcher.measure(views, static_cast<int>(ref), px, cand.plane, st.neighbours, &r);
+        if (why != PatchFailure::None) {
+          ++out->stats.failures[static_cast<std::size_t>(why)];
+          continue;
+        }
+        const Eigen::Vector3d X = R.transpose() * (r.point_ref - t);
+        if (!in_box(result.box, X)) {
+          ++out->stats.outside_box;
+          cell.attempts = static_cast<unsigned char>(o.max_attempts);
+          continue;
+        }
+        cell.state = CellState::Done;
+        cell.plane = r.plane;
+        cell.correlation = static_cast<float>(r.correlation);
+        ++out->stats.accepted;
+        out->points.push_back({X, R.transpose() * (-r.plane.normalized()), r.sigma_along_ray,
+                               static_cast<int>(r.views.size()) + 1, static_cast<int>(ref), r.correlation});
+        propose(cand.cell, r.plane, r.correlation);
+      }
+    };
+    const int n_tiles = tiles_x * tiles_y;
+    std::vector<TileOut> outs(static_cast<std::size_t>(n_tiles));
+    geometry::parallel_for(static_cast<std::size_t>(n_tiles), threads,
+                           [&](std::size_t k) { grow(static_cast<int>(k), std::move(seeds[k]), &outs[k]); });
+    // Second pass: each empty cell beside a measured cell of another tile starts from its plane.
+    std::vector<std::vector<Candidate>> border(static_cast<std::size_t>(n_tiles));
+    for (int c = 0; c < gw * gh; ++c) {
+      if (cells[c].state == CellState::Done || cells[c].attempts >= o.max_attempts) continue;
+      const int cx = c % gw, cy = c / gw;
+      const int nb[4][2] = {{cx - 1, cy}, {cx + 1, cy}, {cx, cy - 1}, {cx, cy + 1}};
+      for (const auto& q : nb) {
+        if (q[0] < 0 || q[1] < 0 || q[0] >= gw || q[1] >= gh) continue;
+        const int nc = q[1] * gw + q[0];
+        if (tile_of(nc) == tile_of(c) || cells[nc].state == CellState::Empty) continue;
+        border[tile_of(c)].push_back({cells[nc].correlation, c, cells[nc].plane});
+      }
+    }
+    std::vector<TileOut> outs2(static_cast<std::size_t>(n_tiles));
+    geometry::parallel_for(static_cast<std::size_t>(n_tiles), threads, [&](std::size_t k) {
+      if (!border[k].empty()) grow(static_cast<int>(k), std::move(border[k]), &outs2[k]);
+    });
+    for (auto* pass : {&outs, &outs2}) {
+      for (TileOut& to : *pass) {
+        points.insert(points.end(), to.points.begin(), to.points.end());
+        st.measured += to.stats.measured;
+        st.accepted += to.stats.accepted;
+        st.outside_box += to.stats.outside_box;
+        for (std::size_t k = 0; k < st.failures.size(); ++k) st.failures[k] += to.stats.failures[k];
+      }
+    }
+    if (progress) {
+      progress("reference " + std::to_string(ref + 1) + " of " + std::to_string(n_views) + " (" + in.poses[ref].image +
+               "): " + std::to_string(st.accepted) + " points of " + std::to_string(st.measured) + " patches measured, " +
+               std::to_string(points.size()) + " in all");
+    }
+  }
+  if (points.empty()) {
+    throw InputError(in.poses_source, 0,
+                     "no patch was accepted in any photo: the photos may not match their poses or camera, or the "
+                     "surface has no texture (see the refusals above with -v)");
+  }
+
+  PointCloud& cloud = result.cloud;
+  cloud.units = in.sparse.units;
+  cloud.points_mm.reserve(points.size());
+  for (const char* name : {"nx", "ny", "nz"}) cloud.add_property(name, PlyScalar::Float32);
+  cloud.add_property("scalar_sigma_mm", PlyScalar::Float32);
+  cloud.add_property("scalar_views", PlyScalar::UInt8);
+  cloud.add_property("scalar_ref_image", PlyScalar::UInt16);
+  cloud.add_property("scalar_correlation", PlyScalar::Float32);
+  for (auto& p : cloud.properties) p.values.reserve(points.size());
+  for (const DensePoint& p : points) {
+    cloud.points_mm.push_back(p.xyz);
+    // (Float32 properties hold the value rounded to float: write_ply refuses a value its type
+    // cannot store.)
+    auto f32 = [](double v) { return static_cast<double>(static_cast<float>(v)); };
+    const double vals[7] = {f32(p.normal.x()), f32(p.normal.y()), f32(p.normal.z()), f32(p.sigma), static_cast<double>(p.views),
+                            static_cast<double>(p.ref), f32(p.correlation)};
+    for (std::size_t k = 0; k < 7; ++k) cloud.properties[k].values.push_back(vals[k]);
+  }
+  return result;
+}
+
+}  // namespace photomill::densify
