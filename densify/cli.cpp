@@ -25,10 +25,9 @@ namespace fs = std::filesystem;
 void add_options(CLI::App& app, Cli& c) {
   DensifyOptions& o = c.options;
   PatchOptions& p = o.patch;
-  app.add_option("cloud", c.cloud, "The sparse cloud (triangulate's cloud.ply): seeds and the default box; '-' reads stdin")
-      ->required();
-  app.add_option("--camera", c.camera, "camera.yaml of the photos (triangulate's --refined-camera if it wrote one)")->required();
-  app.add_option("--poses", c.poses, "The photos' poses (triangulate's poses.csv); its image names name the photos")->required();
+  app.add_option("cloud", c.cloud, "The sparse cloud (triangulate's cloud.ply): seeds and the default box; '-' reads stdin");
+  app.add_option("--camera", c.camera, "camera.yaml of the photos (triangulate's --refined-camera if it wrote one)");
+  app.add_option("--poses", c.poses, "The photos' poses (triangulate's poses.csv); its image names name the photos");
   app.add_option("--image-dir", c.image_dir, "Read the photos by file name from this folder (default: as poses.csv names them)");
   app.add_option("--observations", c.observations,
                  "detect's observations CSV(s): the markers (and their quiet zones) are masked out");
@@ -89,6 +88,8 @@ std::optional<std::string> run_of(const std::string& path) {
 
 DensifyInputs read_inputs(Cli& c) {
   DensifyOptions& o = c.options;
+  if (c.cloud.empty()) throw UsageError("give the sparse cloud (triangulate's cloud.ply)");
+  if (c.camera.empty() || c.poses.empty()) throw UsageError("give the photos' camera and poses: --camera FILE --poses FILE");
   if (o.min_angle_deg >= o.max_angle_deg) throw UsageError("--min-angle-deg must be below --max-angle-deg");
   if (!c.box.empty()) {
     if (!(c.box[0] < c.box[3] && c.box[1] < c.box[4] && c.box[2] < c.box[5])) {

@@ -165,6 +165,11 @@ INSTANTIATE_TEST_SUITE_P(
                   }, 1, "seeds.ply"},
         ErrorCase{"NoSeedInTheBox", {}, [](const Job&, auto& a) { set_arg(a, "--box", "500,500,500,600,600,600"); }, 1,
                   "no point of the sparse cloud lies inside the box"},
+        ErrorCase{"NoCamera", {}, [](const Job&, auto& a) {
+                    const auto it = std::find(a.begin(), a.end(), "--camera");
+                    a.erase(it, it + 2);
+                  }, 2, "--camera FILE --poses FILE"},
+        ErrorCase{"NoCloud", {}, [](const Job&, auto& a) { a.erase(a.begin()); }, 2, "give the sparse cloud"},
         ErrorCase{"BoxInsideOut", {}, [](const Job&, auto& a) { set_arg(a, "--box", "10,0,0,0,10,10"); }, 2,
                   "each minimum must be below its maximum"},
         ErrorCase{"AngleRangeEmpty", {}, [](const Job&, auto& a) { set_arg(a, "--min-angle-deg", "40"); set_arg(a, "--max-angle-deg", "30"); },
