@@ -51,7 +51,7 @@ struct PatchOptions {
   double converged_px = 0.005;
   // A view whose aligned window correlates below this is dropped; the patch needs
   // min_views - 1 views besides the reference.
-  double min_correlation = 0.85;
+  double min_correlation = 0.95;
   int min_views = 3;
   // Refused when the centre moved farther than this in some view from where it started (it
   // found another texture), or when the plane is seen more obliquely than this from the

@@ -70,4 +70,15 @@ if out=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="upper/*.JPG" CAMERA=given.yaml
   fail "CLICKED= with MARKERS=0 must stop make"
 fi
 grep -q "CLICKED= joins the markers' observations: it needs MARKERS=1" <<<"$out" || fail "unexpected message: $out"
-echo "makefile_test: globs quoted or not, FITSURF+= keeps PART_BOX, an unmatched glob, .JPG photos, one extension, BIN beside the Makefile, MARKERS=0 with CAMERA=, CLICKED=: ok"
+# make -n prints a recipe's continued lines as written: joined here.
+join_lines() { sed -e ':a' -e '/\\$/N; s/\\\n//; ta'; }
+# DENSE=1: densify between triangulate and fitsurf, with the job's refined camera, poses, markers
+# and PART_BOX; fitsurf fits its dense.ply. Without markers: camera.yaml, no mask, no box.
+dense=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="$demo/part_*.jpg" CALIB_PHOTOS="$demo/board_*.jpg" DENSE=1 DENSIFY="--spacing-px 3" OUT=job6)
+grep -q "^/opt/pm/bin/densify job6/cloud.ply --camera job6/camera-refined.yaml --poses job6/poses.csv.*--observations job6/observations.csv --box -85,-60,-5,85,60,100 --spacing-px 3 -o job6/dense.ply" <<<"$(join_lines <<<"$dense")" ||
+  fail "DENSE=1: densify is not run as expected: $(grep -A1 densify <<<"$dense" | head -2)"
+grep -q "^/opt/pm/bin/fitsurf job6/dense.ply" <<<"$dense" || fail "DENSE=1: fitsurf does not fit dense.ply"
+free_dense=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="upper/*.JPG" CAMERA=given.yaml MARKERS=0 DENSE=1 OUT=job7)
+grep -q "^/opt/pm/bin/densify job7/cloud.ply --camera job7/camera.yaml --poses job7/poses.csv *-o job7/dense.ply" <<<"$(join_lines <<<"$free_dense")" ||
+  fail "DENSE=1 MARKERS=0: densify is not run as expected: $(grep -A1 densify <<<"$free_dense" | head -2)"
+echo "makefile_test: globs quoted or not, FITSURF+= keeps PART_BOX, an unmatched glob, .JPG photos, one extension, BIN beside the Makefile, MARKERS=0 with CAMERA=, CLICKED=, DENSE=1: ok"
