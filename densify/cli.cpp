@@ -60,6 +60,11 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_flag("!--planar", p.quadratic, "Match planes only (no curvature terms: biased on curved surfaces)")->group(lsm);
   app.add_option("--min-correlation", p.min_correlation, "A view whose aligned window correlates below this is dropped")
       ->group(lsm)->check(tool::finite_in(-1, 1))->capture_default_str();
+  app.add_option("--centre-half-window-px", p.centre_half_window_px, "The window's central square checked alone (half-width)")
+      ->group(lsm)->check(tool::finite_in(1, 50))->capture_default_str();
+  app.add_option("--min-centre-correlation", p.min_centre_correlation,
+                 "A view whose central square correlates below this is dropped (a centre seeing past a depth edge)")
+      ->group(lsm)->check(tool::finite_in(-1, 1))->capture_default_str();
   app.add_option("--min-views", p.min_views, "Photos a point must be matched in, the reference included")
       ->group(lsm)->check(tool::finite_in(2, 64))->capture_default_str();
   app.add_option("--max-iterations", p.max_iterations, "Gauss-Newton iterations per patch at most")

@@ -128,7 +128,7 @@ TEST(DensifyOptions, MinCorrelation) {
 TEST(DensifyOptions, WindowShapeAndModel) {
   for (const auto& [opt, value] : std::vector<std::pair<std::string, std::string>>{
            {"--half-window-px", "6"}, {"--window-stride-px", "1"}, {"--planar", ""}, {"--max-obliquity-deg", "45"},
-           {"--converged-px", "0.1"}, {"--max-iterations", "8"}, {"--max-shift-px", "0.2"}, {"--max-attempts", "1"},
+           {"--converged-px", "0.1"}, {"--centre-half-window-px", "6"}, {"--min-centre-correlation", "0.95"}, {"--max-iterations", "8"}, {"--max-shift-px", "0.2"}, {"--max-attempts", "1"},
            {"--tile-cells", "8"}}) {
     std::vector<std::string> o = {opt};
     if (!value.empty()) o.push_back(value);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Dense>
@@ -211,6 +212,44 @@ PatchFailure PatchMatcher::measure(const std::vector<PatchView>& views, int ref,
     }
     return sgg > 0 ? sfg / std::sqrt(f_var * sgg) : 0.0;
   };
+  // The correlation over the window's centre alone (every pixel of the central
+  // 2 centre_half_window_px + 1 square): where the centre pixel sees past a depth edge (a wall's
+  // rim) while most of the window lies on the near face, the whole window still matches on the
+  // near face's surface and would put the point in the air beyond the edge ("foreground
+  // fattening"); the centre's own pixels do not match there.
+  const int ch = std::min(o.centre_half_window_px, h);
+  std::vector<double> fc;
+  double fc_mean = 0;
+  for (int dy = -ch; dy <= ch; ++dy) {
+    for (int dx = -ch; dx <= ch; ++dx) {
+      fc.push_back(f.at<float>(centre.y() + dy, centre.x() + dx));
+      fc_mean += fc.back();
+    }
+  }
+  fc_mean /= static_cast<double>(fc.size());
+  auto centre_correlation = [&](const cv::Mat& gimg, const ViewMap& m) -> std::optional<double> {
+    std::vector<double> gc;
+    gc.reserve(fc.size());
+    double gm = 0;
+    for (int dy = -ch; dy <= ch; ++dy) {
+      for (int dx = -ch; dx <= ch; ++dx) {
+        const double x = static_cast<double>(dx) / h, y = static_cast<double>(dy) / h;
+        const Eigen::Matrix<double, 6, 1> bv = (Eigen::Matrix<double, 6, 1>() << 1.0, x, y, x * x, x * y, y * y).finished();
+        double val, gx, gy;
+        if (!match::sample_cubic(gimg, m.C.row(0) * bv, m.C.row(1) * bv, val, gx, gy)) return std::nullopt;
+        gc.push_back(val);
+        gm += val;
+      }
+    }
+    gm /= static_cast<double>(gc.size());
+    double sfg = 0, sff = 0, sgg = 0;
+    for (std::size_t q = 0; q < gc.size(); ++q) {
+      sfg += (fc[q] - fc_mean) * (gc[q] - gm);
+      sff += (fc[q] - fc_mean) * (fc[q] - fc_mean);
+      sgg += (gc[q] - gm) * (gc[q] - gm);
+    }
+    return sff > 0 && sgg > 0 ? sfg / std::sqrt(sff * sgg) : 0.0;
+  };
   {
     std::vector<double> g;
     for (std::size_t v = 0; v < active.size(); ++v) {
@@ -348,6 +387,9 @@ PatchFailure PatchMatcher::measure(const std::vector<PatchView>& views, int ref,
       if (!map_view(n, curv, active[v], &maps[v]) || !sample_window(active[v], maps[v], &g)) return PatchFailure::Border;
       const double c = correlation(g);
       if (c < o.min_correlation || !(b[v] > 0)) continue;
+      const auto cc = centre_correlation(views[active[v]].grey, maps[v]);
+      if (!cc) return PatchFailure::Border;
+      if (*cc < o.min_centre_correlation) continue;
       kept.push_back(active[v]);
       kept_start.push_back(start[v]);
       kept_maps.push_back(maps[v]);

@@ -52,6 +52,10 @@ struct PatchOptions {
   // A view whose aligned window correlates below this is dropped; the patch needs
   // min_views - 1 views besides the reference.
   double min_correlation = 0.95;
+  // ... and the window's central square of 2 centre_half_window_px + 1 pixels at least this
+  // (a centre that sees past a depth edge while the window matches on the near face).
+  int centre_half_window_px = 3;
+  double min_centre_correlation = 0.8;
   int min_views = 3;
   // Refused when the centre moved farther than this in some view from where it started (it
   // found another texture), or when the plane is seen more obliquely than this from the
