@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include "densify/test_demo.hpp"
 #include "formats/point_cloud.hpp"
 #include "tests/run_tool.hpp"
 #include "tests/temp_dir.hpp"
@@ -23,7 +24,7 @@ using photomill::test::read_file;
 using photomill::test::run_tool;
 using photomill::test::TempDir;
 
-const fs::path kDemo = fs::path(PHOTOMILL_SOURCE_DIR) / "data" / "demo";
+using test::kDemo;
 // Five views around part_00 and a 40 x 30 mm patch of the part with a bump's flank and a part
 // marker in it (masked: its cells repeat at 1.7 mm, and a match one cell off correlates as well).
 const std::vector<std::string> kPhotos = {"part_00.jpg", "part_01.jpg", "part_02.jpg", "part_10.jpg", "part_11.jpg"};
@@ -34,20 +35,7 @@ const std::string kBox = "-60,-45,-5,-20,-15,60";
 class Job {
 public:
   explicit Job(const std::function<void(std::vector<std::string>&)>& edit = {}) {
-    std::ifstream in(kDemo / "poses.csv");
-    std::ofstream out(dir_.path() / "poses.csv");
-    std::string line;
-    std::getline(in, line);
-    out << line << "\n";
-    while (std::getline(in, line)) {
-      std::vector<std::string> f;
-      std::stringstream ss(line);
-      for (std::string x; std::getline(ss, x, ',');) f.push_back(x);
-      if (std::find(kPhotos.begin(), kPhotos.end(), f[0]) == kPhotos.end()) continue;
-      if (edit) edit(f);
-      for (std::size_t k = 0; k < f.size(); ++k) out << (k ? "," : "") << f[k];
-      out << "\n";
-    }
+    test::write_demo_poses(dir_.path() / "poses.csv", kPhotos, edit);
     fs::copy_file(kDemo / "camera.yaml", dir_.path() / "camera.yaml");
     fs::copy_file(kDemo / "surface.ply", dir_.path() / "seeds.ply");
   }

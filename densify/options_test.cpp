@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include "densify/test_demo.hpp"
 #include "formats/point_cloud.hpp"
 #include "tests/run_tool.hpp"
 #include "tests/temp_dir.hpp"
@@ -20,21 +21,14 @@ using photomill::test::read_file;
 using photomill::test::run_tool;
 using photomill::test::TempDir;
 
-const fs::path kDemo = fs::path(PHOTOMILL_SOURCE_DIR) / "data" / "demo";
+using test::kDemo;
 
 // The job's files, made once: poses of four photos, the true camera, and seeds: the demo's true
 // surface samples over x in [-50, -34], y in [-44, -32] (so that the default box is that patch's).
 class Files {
 public:
   Files() {
-    std::ifstream in(kDemo / "poses.csv");
-    std::ofstream out(dir_.path() / "poses.csv");
-    for (std::string line; std::getline(in, line);) {
-      if (line.rfind("image", 0) == 0 || line.rfind("part_00", 0) == 0 || line.rfind("part_01", 0) == 0 ||
-          line.rfind("part_10", 0) == 0 || line.rfind("part_11", 0) == 0) {
-        out << line << "\n";
-      }
-    }
+    test::write_demo_poses(dir_.path() / "poses.csv", {"part_00.jpg", "part_01.jpg", "part_10.jpg", "part_11.jpg"});
     fs::copy_file(kDemo / "camera.yaml", dir_.path() / "camera.yaml");
     std::ifstream ply(kDemo / "surface.ply", std::ios::binary);
     const PointCloud surface = read_ply(ply, "surface.ply");

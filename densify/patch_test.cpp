@@ -129,6 +129,12 @@ double ray_error(const Scene& s, const Surface& h, const Eigen::Vector2i& centre
   return (X - *truth).norm();
 }
 
+// The depth (reference camera's z) of the true surface point the reference pixel `centre` sees.
+double true_depth(const Scene& s, const Surface& h, const Eigen::Vector2i& centre) {
+  const auto truth = cast(s.camera, s.views[0], h, centre.cast<double>());
+  return (s.views[0].rotation * *truth + s.views[0].translation_mm).z();
+}
+
 const std::vector<std::pair<double, double>> kRing = {{0, 60}, {20, 55}, {-20, 55}, {0, 45}};
 
 TEST(PatchMatcher, FindsATiltedPlaneToMicrometres) {
@@ -136,8 +142,7 @@ TEST(PatchMatcher, FindsATiltedPlaneToMicrometres) {
   const Scene s = render(plane, kRing);
   const PatchMatcher m(s.camera, {});
   const Eigen::Vector2i centre(240, 180);
-  const auto truth = cast(s.camera, s.views[0], plane, centre.cast<double>());
-  const double z = (s.views[0].rotation * *truth + s.views[0].translation_mm).z();
+  const double z = true_depth(s, plane, centre);
   PatchResult r;
   // Started 0.5 mm off in depth, with the plane facing the camera (about 25 degrees off).
   ASSERT_EQ(m.measure(s.views, 0, centre, facing_plane(s.camera, centre, z + 0.5), {1, 2, 3}, &r), PatchFailure::None);
@@ -163,8 +168,7 @@ TEST(PatchMatcher, CurvatureTermsRemoveThePlanarBiasOnACurvedSurface) {
   double err_q = 0, err_p = 0;
   int n = 0;
   for (const Eigen::Vector2i& centre : {Eigen::Vector2i(240, 180), Eigen::Vector2i(222, 168), Eigen::Vector2i(258, 192)}) {
-    const auto truth = cast(s.camera, s.views[0], dome, centre.cast<double>());
-    const double z = (s.views[0].rotation * *truth + s.views[0].translation_mm).z();
+    const double z = true_depth(s, dome, centre);
     PatchResult rq, rp;
     ASSERT_EQ(PatchMatcher(s.camera, quadratic).measure(s.views, 0, centre, facing_plane(s.camera, centre, z), {1, 2, 3}, &rq),
               PatchFailure::None);
@@ -184,8 +188,7 @@ TEST(PatchMatcher, RefusesWhatItCannotMeasure) {
   const Scene s = render(plane, kRing);
   const PatchMatcher m(s.camera, {});
   const Eigen::Vector2i centre(240, 180);
-  const auto truth = cast(s.camera, s.views[0], plane, centre.cast<double>());
-  const double z = (s.views[0].rotation * *truth + s.views[0].translation_mm).z();
+  const double z = true_depth(s, plane, centre);
   PatchResult r;
   // Too few views for min_views 3.
   EXPECT_EQ(m.measure(s.views, 0, centre, facing_plane(s.camera, centre, z), {1}, &r), PatchFailure::Views);
