@@ -13,7 +13,6 @@
 #include "formats/image_decode.hpp"
 #include "formats/log.hpp"
 #include "formats/option_checks.hpp"
-#include "formats/run.hpp"
 #include "formats/text.hpp"
 #include "formats/tool.hpp"
 #include "geometry/parallel.hpp"
@@ -77,20 +76,6 @@ void add_options(CLI::App& app, Cli& c) {
       ->group(lsm)->check(tool::finite_in(1, 90))->capture_default_str();
 }
 
-namespace {
-
-// The run id stamped in the first 4 KB of a file (nullopt for stdin or a file without one).
-std::optional<std::string> run_of(const std::string& path) {
-  if (path == "-") return std::nullopt;
-  const auto in = tool::open_input(path);
-  std::string head(4096, '\0');
-  in->read(head.data(), static_cast<std::streamsize>(head.size()));
-  head.resize(static_cast<std::size_t>(in->gcount()));
-  return find_run_id(head);
-}
-
-}  // namespace
-
 DensifyInputs read_inputs(Cli& c) {
   DensifyOptions& o = c.options;
   if (c.cloud.empty()) throw UsageError("give the sparse cloud (triangulate's cloud.ply)");
@@ -123,7 +108,7 @@ DensifyInputs read_inputs(Cli& c) {
   }
   if (in.poses.size() < 2) throw InputError(tool::source_name(c.poses), 0, "densify needs the poses of at least 2 photos");
   // A cloud and poses of two different triangulate runs do not describe one reconstruction.
-  const auto cloud_run = run_of(c.cloud), poses_run = run_of(c.poses);
+  const auto cloud_run = tool::file_run_id(c.cloud), poses_run = tool::file_run_id(c.poses);
   if (cloud_run && poses_run && *cloud_run != *poses_run) {
     throw InputError(tool::source_name(c.poses), 0,
                      "made by another run (" + *poses_run + ") than the cloud " + c.cloud + " (" + *cloud_run +

@@ -28,6 +28,7 @@
 
 #include "formats/error.hpp"
 #include "formats/log.hpp"
+#include "formats/run.hpp"
 
 namespace photomill::tool {
 namespace {
@@ -497,6 +498,15 @@ std::unique_ptr<std::istream> open_input(const std::string& path) {
     throw InputError(path, 0, "is a device, not a file (an endless input)");
   }
   return std::make_unique<FileInput>(fd, true, path);
+}
+
+std::optional<std::string> file_run_id(const std::string& path) {
+  if (path == "-" || path.empty()) return std::nullopt;
+  const auto in = open_input(path);
+  std::string head(4096, '\0');
+  in->read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(in->gcount()));
+  return find_run_id(head);
 }
 
 std::string read_all(const std::string& path, std::size_t max_bytes) {

@@ -7,6 +7,7 @@
 #include <functional>
 #include <iosfwd>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -61,6 +62,10 @@ std::unique_ptr<std::istream> open_input(const std::string& path);
 // Reads a whole input into memory (for readers that need random access, e.g. OCCT), refusing
 // inputs larger than max_bytes.
 std::string read_all(const std::string& path, std::size_t max_bytes);
+
+// The run id a photomill file carries in its first 4 KB (find_run_id, formats/run.hpp); nullopt
+// if it has none, or for stdin ("-"), which cannot be read twice. A read error names the file.
+std::optional<std::string> file_run_id(const std::string& path);
 
 // An output that is either stdout ("-" or empty path) or a file written under a temporary name
 // in the same folder and renamed onto `path` by commit() (inside run(): once the whole run

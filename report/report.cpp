@@ -10,7 +10,6 @@
 #include <map>
 #include <sstream>
 
-#include "formats/run.hpp"
 #include "formats/error.hpp"
 #include "formats/image.hpp"
 #include "formats/tool.hpp"
@@ -191,11 +190,7 @@ void check_one_run(const fs::path& root, const KnownFile& k, const JsonValue& re
     const fs::path p = root / out;
     std::error_code ec;
     if (!fs::is_regular_file(p, ec)) continue;
-    const auto in = tool::open_input(p.string());  // a read error names the file
-    std::string head(4096, '\0');
-    in->read(head.data(), static_cast<std::streamsize>(head.size()));
-    head.resize(static_cast<std::size_t>(in->gcount()));
-    const auto id = find_run_id(head);
+    const auto id = tool::file_run_id(p.string());  // a read error names the file
     if (!id || *id == run->string) continue;
     throw InputError((root / k.path).string(), 0,
                      "made by another run of " + k.tool + " (" + run->string + ") than " + p.string() + " (" + *id +
