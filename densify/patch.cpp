@@ -201,17 +201,6 @@ PatchFailure PatchMatcher::measure(const std::vector<PatchView>& views, int ref,
     }
     return true;
   };
-  auto correlation = [&](const std::vector<double>& g) {
-    double gm = 0;
-    for (double v : g) gm += v;
-    gm /= static_cast<double>(n_pix);
-    double sfg = 0, sgg = 0;
-    for (std::size_t q = 0; q < n_pix; ++q) {
-      sfg += (fv[q] - f_mean) * (g[q] - gm);
-      sgg += (g[q] - gm) * (g[q] - gm);
-    }
-    return sgg > 0 ? sfg / std::sqrt(f_var * sgg) : 0.0;
-  };
   // The correlation over the window's centre alone (every pixel of the central
   // 2 centre_half_window_px + 1 square): where the centre pixel sees past a depth edge (a wall's
   // rim) while most of the window lies on the near face, the whole window still matches on the
@@ -219,18 +208,12 @@ PatchFailure PatchMatcher::measure(const std::vector<PatchView>& views, int ref,
   // fattening"); the centre's own pixels do not match there.
   const int ch = std::min(o.centre_half_window_px, h);
   std::vector<double> fc;
-  double fc_mean = 0;
   for (int dy = -ch; dy <= ch; ++dy) {
-    for (int dx = -ch; dx <= ch; ++dx) {
-      fc.push_back(f.at<float>(centre.y() + dy, centre.x() + dx));
-      fc_mean += fc.back();
-    }
+    for (int dx = -ch; dx <= ch; ++dx) fc.push_back(f.at<float>(centre.y() + dy, centre.x() + dx));
   }
-  fc_mean /= static_cast<double>(fc.size());
   auto centre_correlation = [&](const cv::Mat& gimg, const ViewMap& m) -> std::optional<double> {
     std::vector<double> gc;
     gc.reserve(fc.size());
-    double gm = 0;
     for (int dy = -ch; dy <= ch; ++dy) {
       for (int dx = -ch; dx <= ch; ++dx) {
         const double x = static_cast<double>(dx) / h, y = static_cast<double>(dy) / h;
@@ -238,17 +221,9 @@ PatchFailure PatchMatcher::measure(const std::vector<PatchView>& views, int ref,
         double val, gx, gy;
         if (!match::sample_cubic(gimg, m.C.row(0) * bv, m.C.row(1) * bv, val, gx, gy)) return std::nullopt;
         gc.push_back(val);
-        gm += val;
       }
     }
-    gm /= static_cast<double>(gc.size());
-    double sfg = 0, sff = 0, sgg = 0;
-    for (std::size_t q = 0; q < gc.size(); ++q) {
-      sfg += (fc[q] - fc_mean) * (gc[q] - gm);
-      sff += (fc[q] - fc_mean) * (fc[q] - fc_mean);
-      sgg += (gc[q] - gm) * (gc[q] - gm);
-    }
-    return sff > 0 && sgg > 0 ? sfg / std::sqrt(sff * sgg) : 0.0;
+    return match::correlation_of(fc, gc);
   };
   {
     std::vector<double> g;
@@ -385,7 +360,7 @@ PatchFailure PatchMatcher::measure(const std::vector<PatchView>& views, int ref,
     std::vector<double> g;
     for (std::size_t v = 0; v < active.size(); ++v) {
       if (!map_view(n, curv, active[v], &maps[v]) || !sample_window(active[v], maps[v], &g)) return PatchFailure::Border;
-      const double c = correlation(g);
+      const double c = match::correlation_of(fv, g);
       if (c < o.min_correlation || !(b[v] > 0)) continue;
       const auto cc = centre_correlation(views[active[v]].grey, maps[v]);
       if (!cc) return PatchFailure::Border;

@@ -35,25 +35,6 @@ bool sample(const cv::Mat& im, double x, double y, double& v) {
   return sample_cubic(im, x, y, v, gx, gy);
 }
 
-// Pearson correlation of two equally long sample vectors (0 if either is flat).
-double correlation_of(const std::vector<double>& a, const std::vector<double>& b) {
-  const double n = static_cast<double>(a.size());
-  double sa = 0, sb = 0;
-  for (std::size_t k = 0; k < a.size(); ++k) {
-    sa += a[k];
-    sb += b[k];
-  }
-  const double ma = sa / n, mb = sb / n;
-  double saa = 0, sbb = 0, sab = 0;
-  for (std::size_t k = 0; k < a.size(); ++k) {
-    const double da = a[k] - ma, db = b[k] - mb;
-    saa += da * da;
-    sbb += db * db;
-    sab += da * db;
-  }
-  return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 0.0;
-}
-
 bool window_samples(const cv::Mat& f, const Eigen::Vector2d& ref_px, int h, std::vector<double>& out) {
   out.clear();
   for (int dy = -h; dy <= h; ++dy) {
@@ -85,6 +66,24 @@ std::optional<double> window_correlation_of_map(const cv::Mat& f, const Eigen::V
 }
 
 }  // namespace
+
+double correlation_of(std::span<const double> a, std::span<const double> b) {
+  const double n = static_cast<double>(a.size());
+  double sa = 0, sb = 0;
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    sa += a[k];
+    sb += b[k];
+  }
+  const double ma = sa / n, mb = sb / n;
+  double saa = 0, sbb = 0, sab = 0;
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    const double da = a[k] - ma, db = b[k] - mb;
+    saa += da * da;
+    sbb += db * db;
+    sab += da * db;
+  }
+  return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 0.0;
+}
 
 bool sample_cubic(const cv::Mat& im, double x, double y, double& v, double& gx, double& gy) {
   if (!(x >= 1 && y >= 1 && x < im.cols - 2 && y < im.rows - 2)) return false;

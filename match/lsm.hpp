@@ -20,6 +20,7 @@
 #pragma once
 
 #include <optional>
+#include <span>
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -71,6 +72,11 @@ int half_window_for(double ref_size_px, const LsmOptions& o);
 // centres at integers), with its gradient (Keys' kernel, a = -0.5, and its derivative: bilinear
 // samples would lock matches towards whole pixels); false if the 4x4 neighbourhood leaves the image.
 bool sample_cubic(const cv::Mat& im, double x, double y, double& v, double& gx, double& gy);
+
+// Pearson correlation of two equally long sample vectors,
+//   r = sum (a_k - mean a)(b_k - mean b) / sqrt(sum (a_k - mean a)^2 * sum (b_k - mean b)^2),
+// 0 if either is flat (no variance).
+double correlation_of(std::span<const double> a, std::span<const double> b);
 
 // Normalised cross-correlation of the reference window and the search window mapped by (A, t);
 // nullopt where a sample falls outside an image. Used to pick the start among candidates, on
