@@ -29,6 +29,7 @@
 #include "formats/surface.hpp"
 #include "formats/tables.hpp"
 #include "formats/tool.hpp"
+#include "geometry/parallel.hpp"
 #include "tests/run_tool.hpp"
 #include "tools/synth/dataset.hpp"
 #include "tools/synth/surface_distance.hpp"
@@ -262,11 +263,22 @@ double distance_to_truth(const synth::HeightField& h, const Eigen::Vector3d& c, 
       if (std::abs(y - c.y()) <= reach) ys.push_back(y);
     }
   }
-  double d2 = INFINITY;
+  auto column = [&](double x, double y) {
+    const double above = std::max(0.0, c.z() - h.height_mm(x, y));
+    return (x - c.x()) * (x - c.x()) + (y - c.y()) * (y - c.y()) + above * above;
+  };
+  // The column nearest c first; then a column whose horizontal distance alone reaches the least
+  // found so far cannot lower it and is skipped (the same least, without evaluating h there).
+  auto nearest = [](const std::vector<double>& v, double t) {
+    return *std::min_element(v.begin(), v.end(), [t](double a, double b) { return std::abs(a - t) < std::abs(b - t); });
+  };
+  double d2 = column(nearest(xs, c.x()), nearest(ys, c.y()));
   for (double x : xs) {
+    const double hx2 = (x - c.x()) * (x - c.x());
+    if (hx2 >= d2) continue;
     for (double y : ys) {
-      const double above = std::max(0.0, c.z() - h.height_mm(x, y));
-      d2 = std::min(d2, (x - c.x()) * (x - c.x()) + (y - c.y()) * (y - c.y()) + above * above);
+      if (hx2 + (y - c.y()) * (y - c.y()) >= d2) continue;
+      d2 = std::min(d2, column(x, y));
     }
   }
   return std::sqrt(d2);
@@ -447,19 +459,25 @@ std::pair<double, double> material_left(const synth::HeightField& h, const ClDat
 void toolpath_figures(Report& r, const synth::PartScene& scene, const ClData& cl, const Bounds& b) {
   const synth::HeightField& h = scene.surface;
   const double R = cl.tool_diameter_mm / 2;
-  double gouge = 0;
-  Eigen::Vector3d at_gouge = Eigen::Vector3d::Zero();
-  for (const ClMove& m : cl.moves) {
-    if (m.kind != ClMove::Kind::Feed || !(R > 0)) continue;
+  // Each move's distance on all cores (the truth's evaluation is most of this tool's time); the
+  // largest gouge is then taken in move order, so the figure and its place do not depend on them.
+  std::vector<double> depth(cl.moves.size(), 0.0);
+  geometry::parallel_for(cl.moves.size(), 0, [&](std::size_t k) {
+    const ClMove& m = cl.moves[k];
+    if (m.kind != ClMove::Kind::Feed || !(R > 0)) return;
     const Eigen::Vector3d c = m.tip_mm + R * m.axis.value_or(Eigen::Vector3d::UnitZ());
     if (c.x() < scene.plate_x_min_mm || c.x() > scene.plate_x_max_mm || c.y() < scene.plate_y_min_mm ||
         c.y() > scene.plate_y_max_mm) {
-      continue;
+      return;
     }
-    const double d = distance_to_truth(h, c, R + 1);
-    if (R - d > gouge) {
-      gouge = R - d;
-      at_gouge = m.tip_mm;
+    depth[k] = R - distance_to_truth(h, c, R + 1);
+  });
+  double gouge = 0;
+  Eigen::Vector3d at_gouge = Eigen::Vector3d::Zero();
+  for (std::size_t k = 0; k < cl.moves.size(); ++k) {
+    if (depth[k] > gouge) {
+      gouge = depth[k];
+      at_gouge = cl.moves[k].tip_mm;
     }
   }
   if (gouge > 0) {
