@@ -1,0 +1,1 @@
+// The unit that compiles photomill's precompiled header (CMakeLists.txt, PHOTOMILL_PCH).
