@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <exception>
 #include <filesystem>
 #include <limits>
@@ -31,8 +32,13 @@ namespace {
 struct FeatureGrid {
   double x0 = 0, y0 = 0, cell = 8;
   int nx = 0, ny = 0;
-  // Compressed rows: the features of cell c are items[start[c] .. start[c + 1]).
+  // The cells that hold features lie within columns [ix0, ix1] and rows [iy0, iy1]: a walk along a
+  // line skips the rest (half the grid's extent is the margin, empty but for wild distortion).
+  int ix0 = 0, ix1 = -1, iy0 = 0, iy1 = -1;
+  // Compressed rows: the features of cell c are items[start[c] .. start[c + 1]), their points in
+  // the same order in item_pts (read in cell order along a line, not scattered over memory).
   std::vector<int> start, items;
+  std::vector<Eigen::Vector2d> item_pts;
   // Over the undistorted image area grown by half the image on every side; points beyond it
   // (only a wild distortion model puts them there) are left out, so the grid stays small.
   void build(const std::vector<Eigen::Vector2d>& pts, int width_px, int height_px, double cell_px) {
@@ -44,42 +50,59 @@ struct FeatureGrid {
     const std::size_t ncells = static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny);
     std::vector<std::size_t> cell_of(pts.size(), ncells);
     start.assign(ncells + 1, 0);
+    ix0 = iy0 = 0;
+    ix1 = iy1 = -1;
     for (std::size_t k = 0; k < pts.size(); ++k) {
       const double fx = (pts[k].x() - x0) / cell, fy = (pts[k].y() - y0) / cell;
       if (!(fx >= 0 && fy >= 0 && fx < nx && fy < ny)) continue;
       cell_of[k] = static_cast<std::size_t>(fy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(fx);
       ++start[cell_of[k] + 1];
+      const int cx = static_cast<int>(fx), cy = static_cast<int>(fy);
+      if (ix1 < ix0) {
+        ix0 = ix1 = cx;
+        iy0 = iy1 = cy;
+      }
+      ix0 = std::min(ix0, cx);
+      ix1 = std::max(ix1, cx);
+      iy0 = std::min(iy0, cy);
+      iy1 = std::max(iy1, cy);
     }
     for (std::size_t c = 0; c < ncells; ++c) start[c + 1] += start[c];
     items.assign(static_cast<std::size_t>(start[ncells]), 0);
+    item_pts.assign(items.size(), Eigen::Vector2d::Zero());
     std::vector<int> fill(start.begin(), start.end() - 1);
     for (std::size_t k = 0; k < pts.size(); ++k) {
-      if (cell_of[k] < ncells) items[static_cast<std::size_t>(fill[cell_of[k]]++)] = static_cast<int>(k);
+      if (cell_of[k] >= ncells) continue;
+      const auto at = static_cast<std::size_t>(fill[cell_of[k]]++);
+      items[at] = static_cast<int>(k);
+      item_pts[at] = pts[k];
     }
   }
-  // Calls visit(k) for every feature in the cells that a band of half-width `band` around the
-  // line l (l0 x + l1 y + l2 = 0, (l0, l1) a unit normal) touches (and a few more).
+  // Calls visit(at) for every feature in the cells that a band of half-width `band` around the
+  // line l (l0 x + l1 y + l2 = 0, (l0, l1) a unit normal) touches (and a few more); `at` is its
+  // place in items and item_pts.
   template <class Visit>
   void along_line(const Eigen::Vector3d& l, double band, Visit&& visit) const {
     if (items.empty()) return;
     const bool steep = std::abs(l.x()) > std::abs(l.y());  // walk along y when the line is steep
-    const int n_walk = steep ? ny : nx, n_across = steep ? nx : ny;
+    const int walk_first = steep ? iy0 : ix0, walk_last = steep ? iy1 : ix1;
+    const int across_first = steep ? ix0 : iy0, across_last = steep ? ix1 : iy1;
     const double w0 = steep ? y0 : x0, a0 = steep ? x0 : y0;
     const double lw = steep ? l.y() : l.x(), la = steep ? l.x() : l.y();
     // On the line: across = -(lw * walk + l2) / la; the band adds band / |la| either side.
     const double reach = band / std::abs(la);
-    for (int i = 0; i < n_walk; ++i) {
+    for (int i = walk_first; i <= walk_last; ++i) {
       const double wa = w0 + i * cell, wb = wa + cell;
       double c1 = -(lw * wa + l.z()) / la, c2 = -(lw * wb + l.z()) / la;
       if (c1 > c2) std::swap(c1, c2);
       // Clamped in double first: a line far from the image gives cell numbers beyond int.
-      const double j0d = std::max(0.0, std::floor((c1 - reach - a0) / cell));
-      const double j1d = std::min(static_cast<double>(n_across - 1), std::floor((c2 + reach - a0) / cell));
+      const double j0d = std::max(static_cast<double>(across_first), std::floor((c1 - reach - a0) / cell));
+      const double j1d = std::min(static_cast<double>(across_last), std::floor((c2 + reach - a0) / cell));
       if (!(j0d <= j1d)) continue;
       for (int j = static_cast<int>(j0d); j <= static_cast<int>(j1d); ++j) {
         const int cx = steep ? j : i, cy = steep ? i : j;
         const std::size_t c = static_cast<std::size_t>(cy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(cx);
-        for (int k = start[c]; k < start[c + 1]; ++k) visit(items[static_cast<std::size_t>(k)]);
+        for (int k = start[c]; k < start[c + 1]; ++k) visit(static_cast<std::size_t>(k));
       }
     }
   }
@@ -146,6 +169,19 @@ std::vector<FeatureMatch> match_descriptors(ImageData& a, ImageData& b, const Ma
   return out;
 }
 
+// Squared Euclidean distance of two byte descriptors (SIFT's: 0-255 per value), summed in
+// integers: exact, and an integer sum may be reordered, so the compiler vectorises it (a float sum
+// it must add in order, one value after the other). Up to 258 values the sum stays below 2^24,
+// so as a float it is the same number the float sum of the converted descriptors gave.
+std::int32_t squared_distance(const std::uint8_t* a, const std::uint8_t* b, int n) {
+  std::int32_t sum = 0;
+  for (int k = 0; k < n; ++k) {
+    const std::int32_t e = static_cast<std::int32_t>(a[k]) - static_cast<std::int32_t>(b[k]);
+    sum += e * e;
+  }
+  return sum;
+}
+
 // Guided matching with a known F: each feature of `a` is compared only with the features of `b`
 // within the epipolar band (Sampson distance <= threshold; Hartley & Zisserman sec. 11.9 "guided
 // matching"), the ratio test taken among those candidates, in both directions, with the mutual
@@ -176,9 +212,10 @@ std::vector<FeatureMatch> match_guided(const ImageData& a, const ImageData& b, c
   // Sampson distance (H&Z eq. 11.9) from F x_a, computed once per feature of a, and the first two
   // components of F^T x_b, once per feature of b:
   //   d^2 = (x_b . F x_a)^2 / ((F x_a)_1^2 + (F x_a)_2^2 + (F^T x_b)_1^2 + (F^T x_b)_2^2).
-  std::vector<double> ftb2(static_cast<std::size_t>(nb));
-  for (int j = 0; j < nb; ++j) {
-    ftb2[static_cast<std::size_t>(j)] = (F.transpose() * b.feature_ideal[static_cast<std::size_t>(j)].homogeneous()).head<2>().squaredNorm();
+  // (in b's grid order: ftb2[at] for the feature b.grid.items[at])
+  std::vector<double> ftb2(b.grid.item_pts.size());
+  for (std::size_t at = 0; at < ftb2.size(); ++at) {
+    ftb2[at] = (F.transpose() * b.grid.item_pts[at].homogeneous()).head<2>().squaredNorm();
   }
   const double thr2 = thr * thr;
   for (int i = 0; i < na; ++i) {
@@ -187,19 +224,16 @@ std::vector<FeatureMatch> match_guided(const ImageData& a, const ImageData& b, c
     const double fa2 = fa.head<2>().squaredNorm();
     if (!(fa2 > 0)) continue;
     const Eigen::Vector3d l = fa / std::sqrt(fa2);
-    const float* da = a.descriptors.ptr<float>(i);
+    const std::uint8_t* da = a.features->descriptors.data() + static_cast<std::size_t>(i) * static_cast<std::size_t>(dim);
     // Sampson distance <= thr implies a distance to the line of at most thr * sqrt(2) when the
     // two epipolar gradients are alike; 2 thr leaves room, the exact test follows.
-    b.grid.along_line(l, 2 * thr, [&](int j) {
-      const Eigen::Vector2d& xb = b.feature_ideal[static_cast<std::size_t>(j)];
+    b.grid.along_line(l, 2 * thr, [&](std::size_t at) {
+      const Eigen::Vector2d& xb = b.grid.item_pts[at];
       const double e = xb.x() * fa.x() + xb.y() * fa.y() + fa.z();
-      if (e * e > thr2 * (fa2 + ftb2[static_cast<std::size_t>(j)])) return;
-      const float* db = b.descriptors.ptr<float>(j);
-      float d = 0;
-      for (int k = 0; k < dim; ++k) {
-        const float e = da[k] - db[k];
-        d += e * e;
-      }
+      if (e * e > thr2 * (fa2 + ftb2[at])) return;
+      const int j = b.grid.items[at];
+      const std::uint8_t* db = b.features->descriptors.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(dim);
+      const auto d = static_cast<float>(squared_distance(da, db, dim));
       keep_two(a1[static_cast<std::size_t>(i)], a2[static_cast<std::size_t>(i)], abest[static_cast<std::size_t>(i)], d, j);
       keep_two(b1[static_cast<std::size_t>(j)], b2[static_cast<std::size_t>(j)], bbest[static_cast<std::size_t>(j)], d, i);
     });
