@@ -28,6 +28,56 @@ Eigen::Matrix3d fundamental_from_poses(const Eigen::Matrix3d& K, const Pose& a, 
   return K_inv.transpose() * skew(t) * R * K_inv;
 }
 
+EpipolarPencil::EpipolarPencil(const std::vector<Eigen::Vector2d>& pts, const Eigen::Matrix3d& F) {
+  constexpr double kPi = 3.14159265358979323846;
+  // e: F^T e = 0, the right singular vector of F^T of the smallest singular value.
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(F.transpose(), Eigen::ComputeFullV);
+  e_ = svd.matrixV().col(2).normalized();
+  // l1, l2: an orthonormal basis of the plane orthogonal to e.
+  l1_ = e_.unitOrthogonal();
+  l2_ = e_.cross(l1_).normalized();
+  ftb2_.assign(pts.size(), 0.0);
+  struct Point {
+    double rho, phi, e_dot_x;
+    int index;
+  };
+  std::vector<Point> ps;
+  ps.reserve(pts.size());
+  for (std::size_t k = 0; k < pts.size(); ++k) {
+    if (!pts[k].allFinite()) continue;
+    const Eigen::Vector3d x = pts[k].homogeneous();
+    ftb2_[k] = (F.transpose() * x).head<2>().squaredNorm();
+    const double p = l1_.dot(x), q = l2_.dot(x);
+    double phi = std::atan2(-p, q);
+    if (phi < 0) phi += kPi;
+    if (phi >= kPi) phi -= kPi;
+    ps.push_back({std::hypot(p, q), phi, std::abs(e_.dot(x)), static_cast<int>(k)});
+  }
+  if (ps.empty()) return;
+  // Bands of rho, from the largest down, each a factor 2 wide; the last (up to 24) takes the rest.
+  std::sort(ps.begin(), ps.end(), [](const Point& a, const Point& b) { return a.rho > b.rho; });
+  entries_.reserve(ps.size());
+  std::size_t at = 0;
+  double top = ps.front().rho;
+  for (int b = 0; at < ps.size(); ++b) {
+    const double bottom = b == 23 ? -1.0 : 0.5 * top;
+    Band band;
+    band.begin = entries_.size();
+    band.min_rho = ps[at].rho;
+    for (; at < ps.size() && ps[at].rho > bottom; ++at) {
+      band.min_rho = ps[at].rho;
+      band.max_ftb2 = std::max(band.max_ftb2, ftb2_[static_cast<std::size_t>(ps[at].index)]);
+      band.max_e_dot_x = std::max(band.max_e_dot_x, ps[at].e_dot_x);
+      entries_.push_back({ps[at].phi, ps[at].index});
+    }
+    band.end = entries_.size();
+    std::sort(entries_.begin() + static_cast<std::ptrdiff_t>(band.begin), entries_.end(),
+              [](const Entry& a, const Entry& b) { return a.phi < b.phi || (a.phi == b.phi && a.index < b.index); });
+    if (band.end > band.begin) bands_.push_back(band);
+    top = bottom;
+  }
+}
+
 double sampson_distance_px(const Eigen::Matrix3d& F, const Eigen::Vector2d& xa, const Eigen::Vector2d& xb) {
   const Eigen::Vector3d a = xa.homogeneous(), b = xb.homogeneous();
   const Eigen::Vector3d Fa = F * a, Ftb = F.transpose() * b;

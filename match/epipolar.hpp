@@ -7,6 +7,8 @@
 // unaffected by a dominant plane", CVPR 2005.
 #pragma once
 
+#include <algorithm>
+#include <cstddef>
 #include <optional>
 #include <vector>
 
@@ -26,6 +28,87 @@ Eigen::Matrix3d fundamental_from_poses(const Eigen::Matrix3d& K, const Pose& a, 
 // First-order geometric error of x_a <-> x_b under F (Hartley & Zisserman eq. 11.9), pixels:
 //   d = |x_b^T F x_a| / sqrt((F x_a)_1^2 + (F x_a)_2^2 + (F^T x_b)_1^2 + (F^T x_b)_2^2).
 double sampson_distance_px(const Eigen::Matrix3d& F, const Eigen::Vector2d& xa, const Eigen::Vector2d& xb);
+
+// Image b's points indexed by the epipolar line of F they lie on, to find every point x_b within a
+// Sampson distance of x_a (guided matching) without looking at the others. All epipolar lines
+// of b pass through the epipole e (F^T e = 0, |e| = 1): with l1, l2 an orthonormal basis of the
+// lines through e (3-vectors orthogonal to e), the line of angle phi is l(phi) = l1 cos phi +
+// l2 sin phi, and a point x = (x, y, 1) lies on the line of angle phi_x, where
+//   (l1 . x, l2 . x) = rho_x (-sin phi_x, cos phi_x),  rho_x = |e x x|.
+// For a line l = F x_a = c l(phi_a) + (l . e) e (c = |l - (l . e) e|; the last term is zero for
+// an F of rank 2, kept for one that is not quite):
+//   l . x = c rho_x sin(phi_a - phi_x) + (l . e)(e . x).
+// The Sampson test d^2 <= thr^2 ((F x_a)_1^2 + (F x_a)_2^2 + (F^T x_b)_1^2 + (F^T x_b)_2^2)
+// (Hartley & Zisserman eq. 11.9) then needs
+//   |sin(phi_a - phi_x)| <= (thr sqrt(|(F x_a)_12|^2 + |(F^T x_b)_12|^2) + |l . e| |e . x|) / (c rho_x).
+// The points are kept in bands of rho (each a factor 2 wide), each sorted by phi (mod pi, lines
+// having no direction); a query bounds that sine over each band by its smallest rho and largest
+// |(F^T x_b)_12| and |e . x|, and walks only the band's points within the angle. This holds for
+// an epipole inside the image, far outside it or at infinity alike (no case is special), and
+// every point that passes the exact test is visited; the caller applies the test.
+class EpipolarPencil {
+ public:
+  // `pts`: b's points (undistorted pixels); non-finite ones are left out.
+  EpipolarPencil(const std::vector<Eigen::Vector2d>& pts, const Eigen::Matrix3d& F);
+
+  // Calls visit(k) for each point k of `pts` that may lie within Sampson distance `threshold_px`
+  // of x_a (with some more: visit applies the exact test), where fa = F x_a.
+  template <class Visit>
+  void near(const Eigen::Vector3d& fa, double threshold_px, Visit&& visit) const;
+
+  // (F^T x_b)_1^2 + (F^T x_b)_2^2 of point k, for the exact test.
+  double ftb2(std::size_t k) const { return ftb2_[k]; }
+
+ private:
+  struct Entry {
+    double phi;  // angle of the point's epipolar line, [0, pi)
+    int index;   // in pts
+  };
+  struct Band {
+    std::size_t begin = 0, end = 0;  // entries_[begin, end), sorted by phi
+    double min_rho = 0, max_ftb2 = 0, max_e_dot_x = 0;
+  };
+  template <class Visit>
+  void walk(const Band& band, double from, double to, Visit& visit) const;
+
+  Eigen::Vector3d e_, l1_, l2_;
+  std::vector<double> ftb2_;
+  std::vector<Entry> entries_;
+  std::vector<Band> bands_;
+};
+
+template <class Visit>
+void EpipolarPencil::walk(const Band& band, double from, double to, Visit& visit) const {
+  const auto first = entries_.begin() + static_cast<std::ptrdiff_t>(band.begin);
+  const auto last = entries_.begin() + static_cast<std::ptrdiff_t>(band.end);
+  auto it = std::lower_bound(first, last, from, [](const Entry& en, double v) { return en.phi < v; });
+  for (; it != last && it->phi <= to; ++it) visit(static_cast<std::size_t>(it->index));
+}
+
+template <class Visit>
+void EpipolarPencil::near(const Eigen::Vector3d& fa, double threshold_px, Visit&& visit) const {
+  constexpr double kPi = 3.14159265358979323846;
+  const double along_e = fa.dot(e_);
+  const double c = (fa - along_e * e_).norm();
+  const double fa2 = fa.head<2>().squaredNorm();
+  double phi_a = std::atan2(fa.dot(l2_), fa.dot(l1_));
+  if (phi_a < 0) phi_a += kPi;
+  for (const Band& band : bands_) {
+    if (band.begin == band.end) continue;
+    const double reach = threshold_px * std::sqrt(fa2 + band.max_ftb2) + std::abs(along_e) * band.max_e_dot_x;
+    // The bound on |sin|, widened by a millionth for the rounding of the angles.
+    const double s = reach / (c * band.min_rho) * (1 + 1e-6) + 1e-12;
+    if (!(s < 1)) {  // (also a band at the epipole, rho 0, or a line through it, c 0)
+      walk(band, -1.0, 4.0, visit);
+      continue;
+    }
+    const double delta = std::asin(s);
+    const double from = phi_a - delta, to = phi_a + delta;
+    walk(band, from, to, visit);
+    if (from < 0) walk(band, from + kPi, kPi, visit);
+    if (to >= kPi) walk(band, 0.0, to - kPi, visit);
+  }
+}
 
 struct RobustFitOptions {
   double threshold_px = 1.0;   // inlier threshold on the Sampson distance (and MAGSAC++'s)

@@ -27,87 +27,6 @@ namespace photomill::match {
 
 namespace {
 
-// Features of one image in square cells of `cell` px over their (undistorted) bounding box, for
-// the epipolar band search of guided matching.
-struct FeatureGrid {
-  double x0 = 0, y0 = 0, cell = 8;
-  int nx = 0, ny = 0;
-  // The cells that hold features lie within columns [ix0, ix1] and rows [iy0, iy1]: a walk along a
-  // line skips the rest (half the grid's extent is the margin, empty but for wild distortion).
-  int ix0 = 0, ix1 = -1, iy0 = 0, iy1 = -1;
-  // Compressed rows: the features of cell c are items[start[c] .. start[c + 1]), their points in
-  // the same order in item_pts (read in cell order along a line, not scattered over memory).
-  std::vector<int> start, items;
-  std::vector<Eigen::Vector2d> item_pts;
-  // Over the undistorted image area grown by half the image on every side; points beyond it
-  // (only a wild distortion model puts them there) are left out, so the grid stays small.
-  void build(const std::vector<Eigen::Vector2d>& pts, int width_px, int height_px, double cell_px) {
-    cell = cell_px;
-    x0 = -0.5 * width_px;
-    y0 = -0.5 * height_px;
-    nx = static_cast<int>(2.0 * width_px / cell) + 1;
-    ny = static_cast<int>(2.0 * height_px / cell) + 1;
-    const std::size_t ncells = static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny);
-    std::vector<std::size_t> cell_of(pts.size(), ncells);
-    start.assign(ncells + 1, 0);
-    ix0 = iy0 = 0;
-    ix1 = iy1 = -1;
-    for (std::size_t k = 0; k < pts.size(); ++k) {
-      const double fx = (pts[k].x() - x0) / cell, fy = (pts[k].y() - y0) / cell;
-      if (!(fx >= 0 && fy >= 0 && fx < nx && fy < ny)) continue;
-      cell_of[k] = static_cast<std::size_t>(fy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(fx);
-      ++start[cell_of[k] + 1];
-      const int cx = static_cast<int>(fx), cy = static_cast<int>(fy);
-      if (ix1 < ix0) {
-        ix0 = ix1 = cx;
-        iy0 = iy1 = cy;
-      }
-      ix0 = std::min(ix0, cx);
-      ix1 = std::max(ix1, cx);
-      iy0 = std::min(iy0, cy);
-      iy1 = std::max(iy1, cy);
-    }
-    for (std::size_t c = 0; c < ncells; ++c) start[c + 1] += start[c];
-    items.assign(static_cast<std::size_t>(start[ncells]), 0);
-    item_pts.assign(items.size(), Eigen::Vector2d::Zero());
-    std::vector<int> fill(start.begin(), start.end() - 1);
-    for (std::size_t k = 0; k < pts.size(); ++k) {
-      if (cell_of[k] >= ncells) continue;
-      const auto at = static_cast<std::size_t>(fill[cell_of[k]]++);
-      items[at] = static_cast<int>(k);
-      item_pts[at] = pts[k];
-    }
-  }
-  // Calls visit(at) for every feature in the cells that a band of half-width `band` around the
-  // line l (l0 x + l1 y + l2 = 0, (l0, l1) a unit normal) touches (and a few more); `at` is its
-  // place in items and item_pts.
-  template <class Visit>
-  void along_line(const Eigen::Vector3d& l, double band, Visit&& visit) const {
-    if (items.empty()) return;
-    const bool steep = std::abs(l.x()) > std::abs(l.y());  // walk along y when the line is steep
-    const int walk_first = steep ? iy0 : ix0, walk_last = steep ? iy1 : ix1;
-    const int across_first = steep ? ix0 : iy0, across_last = steep ? ix1 : iy1;
-    const double w0 = steep ? y0 : x0, a0 = steep ? x0 : y0;
-    const double lw = steep ? l.y() : l.x(), la = steep ? l.x() : l.y();
-    // On the line: across = -(lw * walk + l2) / la; the band adds band / |la| either side.
-    const double reach = band / std::abs(la);
-    for (int i = walk_first; i <= walk_last; ++i) {
-      const double wa = w0 + i * cell, wb = wa + cell;
-      double c1 = -(lw * wa + l.z()) / la, c2 = -(lw * wb + l.z()) / la;
-      if (c1 > c2) std::swap(c1, c2);
-      // Clamped in double first: a line far from the image gives cell numbers beyond int.
-      const double j0d = std::max(static_cast<double>(across_first), std::floor((c1 - reach - a0) / cell));
-      const double j1d = std::min(static_cast<double>(across_last), std::floor((c2 + reach - a0) / cell));
-      if (!(j0d <= j1d)) continue;
-      for (int j = static_cast<int>(j0d); j <= static_cast<int>(j1d); ++j) {
-        const int cx = steep ? j : i, cy = steep ? i : j;
-        const std::size_t c = static_cast<std::size_t>(cy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(cx);
-        for (int k = start[c]; k < start[c + 1]; ++k) visit(static_cast<std::size_t>(k));
-      }
-    }
-  }
-};
-
 struct ImageData {
   std::vector<Eigen::Vector2d> coded_px;        // as observed
   std::vector<Eigen::Vector2d> coded_ideal;     // undistorted
@@ -121,9 +40,8 @@ struct ImageData {
   std::vector<int> canonical;
   std::unordered_map<int, std::vector<int>> copies;  // canonical -> all keypoints at its position
   const cv::Mat* grey = nullptr;                     // for least-squares matching
-  cv::Mat descriptors;                          // CV_32F, one row per keypoint
+  cv::Mat descriptors;                          // CV_32F, one row per keypoint (kd-tree search only)
   std::unique_ptr<cv::flann::Index> index;      // over `descriptors`
-  FeatureGrid grid;                             // over `feature_ideal` (guided matching)
 };
 
 // Nearest and second-nearest neighbours of every row of `query` in `index`: best index and the
@@ -186,13 +104,15 @@ std::int32_t squared_distance(const std::uint8_t* a, const std::uint8_t* b, int 
 // within the epipolar band (Sampson distance <= threshold; Hartley & Zisserman sec. 11.9 "guided
 // matching"), the ratio test taken among those candidates, in both directions, with the mutual
 // check. The band holds ~50 of the ~20 000 features of a photo, so this is exact and much faster
-// than kd-tree search over all of them.
+// than kd-tree search over all of them; EpipolarPencil finds the band's features without
+// looking at the others. (The order in which candidates are met does not matter: the best two
+// distances are the smallest two whatever the order, and a tie for the best fails the ratio test.)
 std::vector<FeatureMatch> match_guided(const ImageData& a, const ImageData& b, const Eigen::Matrix3d& F,
                                        const MatchOptions& o) {
   std::vector<FeatureMatch> out;
-  const int na = a.descriptors.rows, nb = b.descriptors.rows;
+  const int na = static_cast<int>(a.features->keypoints.size()), nb = static_cast<int>(b.features->keypoints.size());
   if (na < 2 || nb < 2) return out;
-  const int dim = a.descriptors.cols;
+  const int dim = a.features->descriptor_dim;
   constexpr float kInf = std::numeric_limits<float>::infinity();
   // Best and second-best squared distances per feature, both directions.
   std::vector<float> a1(static_cast<std::size_t>(na), kInf), a2(static_cast<std::size_t>(na), kInf);
@@ -210,32 +130,25 @@ std::vector<FeatureMatch> match_guided(const ImageData& a, const ImageData& b, c
     }
   };
   // Sampson distance (H&Z eq. 11.9) from F x_a, computed once per feature of a, and the first two
-  // components of F^T x_b, once per feature of b:
+  // components of F^T x_b, once per feature of b (by the pencil):
   //   d^2 = (x_b . F x_a)^2 / ((F x_a)_1^2 + (F x_a)_2^2 + (F^T x_b)_1^2 + (F^T x_b)_2^2).
-  // (in b's grid order: ftb2[at] for the feature b.grid.items[at])
-  std::vector<double> ftb2(b.grid.item_pts.size());
-  for (std::size_t at = 0; at < ftb2.size(); ++at) {
-    ftb2[at] = (F.transpose() * b.grid.item_pts[at].homogeneous()).head<2>().squaredNorm();
-  }
+  const EpipolarPencil pencil(b.feature_ideal, F);
   const double thr2 = thr * thr;
   for (int i = 0; i < na; ++i) {
     const Eigen::Vector2d& xa = a.feature_ideal[static_cast<std::size_t>(i)];
     const Eigen::Vector3d fa = F * xa.homogeneous();
     const double fa2 = fa.head<2>().squaredNorm();
     if (!(fa2 > 0)) continue;
-    const Eigen::Vector3d l = fa / std::sqrt(fa2);
     const std::uint8_t* da = a.features->descriptors.data() + static_cast<std::size_t>(i) * static_cast<std::size_t>(dim);
-    // Sampson distance <= thr implies a distance to the line of at most thr * sqrt(2) when the
-    // two epipolar gradients are alike; 2 thr leaves room, the exact test follows.
-    b.grid.along_line(l, 2 * thr, [&](std::size_t at) {
-      const Eigen::Vector2d& xb = b.grid.item_pts[at];
+    pencil.near(fa, thr, [&](std::size_t j) {
+      const Eigen::Vector2d& xb = b.feature_ideal[j];
       const double e = xb.x() * fa.x() + xb.y() * fa.y() + fa.z();
-      if (e * e > thr2 * (fa2 + ftb2[at])) return;
-      const int j = b.grid.items[at];
-      const std::uint8_t* db = b.features->descriptors.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(dim);
+      if (e * e > thr2 * (fa2 + pencil.ftb2(j))) return;
+      const std::uint8_t* db = b.features->descriptors.data() + j * static_cast<std::size_t>(dim);
       const auto d = static_cast<float>(squared_distance(da, db, dim));
-      keep_two(a1[static_cast<std::size_t>(i)], a2[static_cast<std::size_t>(i)], abest[static_cast<std::size_t>(i)], d, j);
-      keep_two(b1[static_cast<std::size_t>(j)], b2[static_cast<std::size_t>(j)], bbest[static_cast<std::size_t>(j)], d, i);
+      const int jb = static_cast<int>(j);
+      keep_two(a1[static_cast<std::size_t>(i)], a2[static_cast<std::size_t>(i)], abest[static_cast<std::size_t>(i)], d, jb);
+      keep_two(b1[j], b2[j], bbest[j], d, i);
     });
   }
   auto ratio = [](float d1, float d2) { return d2 > 0 && d2 < kInf ? std::sqrt(d1 / d2) : 1.0f; };
@@ -258,9 +171,6 @@ struct PairWork {
   std::optional<Eigen::Matrix3d> F;
   std::vector<FeatureMatch> inlier_matches;
 };
-
-// Guided matching's grid cell, px: ~0.4 features per cell at 20 000 per photo.
-constexpr double kGuidedCellPx = 8;
 
 // The options match cannot work with.
 void check_options(const MatchInputs& in, const MatchOptions& o) {
@@ -352,7 +262,7 @@ void check_id_collisions(const std::vector<ImageData>& data, const MatchInputs& 
 }
 
 // Undistorts the coded points and keypoints, finds each keypoint's canonical copy, and indexes the
-// descriptors: a grid for guided matching, else FLANN's kd-trees (in parallel over images).
+// descriptors for FLANN's kd-trees unless matching is guided (in parallel over images).
 void prepare_images(std::vector<ImageData>& data, const MatchInputs& in, const MatchOptions& o, bool guided) {
   const Undistorter undistort(in.camera);
   geometry::parallel_for(data.size(), o.jobs, [&](std::size_t i) {
@@ -369,11 +279,9 @@ void prepare_images(std::vector<ImageData>& data, const MatchInputs& in, const M
     }
     d.feature_ideal = undistort.apply(kp);
     const int rows = static_cast<int>(d.features->keypoints.size());
-    cv::Mat(rows, d.features->descriptor_dim, CV_8U, const_cast<std::uint8_t*>(d.features->descriptors.data()))
-        .convertTo(d.descriptors, CV_32F);
-    if (guided) {
-      d.grid.build(d.feature_ideal, d.features->image_width_px, d.features->image_height_px, kGuidedCellPx);
-    } else if (rows >= 2) {
+    if (!guided && rows >= 2) {
+      cv::Mat(rows, d.features->descriptor_dim, CV_8U, const_cast<std::uint8_t*>(d.features->descriptors.data()))
+          .convertTo(d.descriptors, CV_32F);
       // FLANN draws its random trees from OpenCV's thread-local RNG: seed it per image so the
       // trees, hence the matches, do not depend on which thread indexed which image before.
       cv::theRNG() = cv::RNG(0x9E3779B9u + static_cast<std::uint64_t>(i));
