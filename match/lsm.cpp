@@ -65,6 +65,58 @@ std::optional<double> window_correlation_of_map(const cv::Mat& f, const Eigen::V
   return correlation_of(a, b);
 }
 
+// One Gauss-Newton step's normal equations of lsm_align (see there) with n = 8 or 14 unknowns:
+//   N = sum J J^T, b = sum J e
+// over the window's samples, J and e as lsm_align states them. The sums are kept in plain arrays
+// of compile-time size (the lower triangle of N, as Eigen's rank-one update of a lower
+// selfadjoint view would add them, in the same order): a dynamic-size rank update per sample was
+// a fifth of match's time. False if a sample leaves the search image.
+template <int n>
+bool normal_equations(const cv::Mat& g, const std::vector<double>& fv, int h, const Eigen::Matrix2d& B,
+                      const Eigen::Vector2d& t, const Eigen::Matrix<double, 2, 3>& C, double r0, double r1,
+                      Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 14, 14>& N,
+                      Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 14, 1>& b) {
+  static_assert(n == 8 || n == 14);
+  double Nl[n][n] = {};
+  double bl[n] = {};
+  const double scale = static_cast<double>(h);
+  std::size_t k = 0;
+  for (int dy = -h; dy <= h; ++dy) {
+    for (int dx = -h; dx <= h; ++dx, ++k) {
+      const Eigen::Vector2d d(dx / scale, dy / scale);
+      const Eigen::Vector3d m(d.x() * d.x(), d.x() * d.y(), d.y() * d.y());
+      const Eigen::Vector2d x = B * d + t + C * m;
+      double v, gx, gy;
+      if (!sample_cubic(g, x.x(), x.y(), v, gx, gy)) return false;
+      double J[n];
+      J[0] = r1 * gx * d.x();
+      J[1] = r1 * gx * d.y();
+      J[2] = r1 * gy * d.x();
+      J[3] = r1 * gy * d.y();
+      J[4] = r1 * gx;
+      J[5] = r1 * gy;
+      J[6] = 1.0;
+      J[7] = v;
+      if constexpr (n == 14) {
+        for (int q = 0; q < 3; ++q) {
+          J[8 + q] = r1 * gx * m[q];
+          J[11 + q] = r1 * gy * m[q];
+        }
+      }
+      const double e = fv[k] - r0 - r1 * v;
+      for (int i = 0; i < n; ++i) {
+        for (int j = i; j < n; ++j) Nl[i][j] += J[i] * J[j];
+        bl[i] += J[i] * e;
+      }
+    }
+  }
+  for (int i = 0; i < n; ++i) {
+    b[i] = bl[i];
+    for (int j = i; j < n; ++j) N(i, j) = N(j, i) = Nl[i][j];
+  }
+  return true;
+}
+
 }  // namespace
 
 double correlation_of(std::span<const double> a, std::span<const double> b) {
@@ -192,25 +244,11 @@ std::optional<LsmResult> lsm_align(const cv::Mat& f, const Eigen::Vector2d& ref_
   bool converged = false;
   int it = 0;
   for (int stage_it = 0; stage_it < o.max_iterations && !converged; ++it, ++stage_it) {
-    Mat N = Mat::Zero(n, n);
-    Vec b = Vec::Zero(n);
-    std::size_t k = 0;
-    for (int dy = -h; dy <= h; ++dy) {
-      for (int dx = -h; dx <= h; ++dx, ++k) {
-        const Eigen::Vector2d d(dx / scale, dy / scale);
-        const Eigen::Vector3d m(d.x() * d.x(), d.x() * d.y(), d.y() * d.y());
-        const Eigen::Vector2d x = B * d + t + C * m;
-        double v, gx, gy;
-        if (!sample_cubic(g, x.x(), x.y(), v, gx, gy)) return fail(LsmFailure::Border);
-        Vec J = Vec::Zero(n);
-        J.head<8>() << r1 * gx * d.x(), r1 * gx * d.y(), r1 * gy * d.x(), r1 * gy * d.y(), r1 * gx, r1 * gy, 1.0, v;
-        if (n == 14) J.tail<6>() << r1 * gx * m, r1 * gy * m;
-        const double e = fv[k] - r0 - r1 * v;
-        N.selfadjointView<Eigen::Lower>().rankUpdate(J);
-        b += J * e;
-      }
-    }
-    N = N.selfadjointView<Eigen::Lower>();
+    Mat N(n, n);
+    Vec b(n);
+    const bool inside = n == 14 ? normal_equations<14>(g, fv, h, B, t, C, r0, r1, N, b)
+                                : normal_equations<8>(g, fv, h, B, t, C, r0, r1, N, b);
+    if (!inside) return fail(LsmFailure::Border);
     const Eigen::LDLT<Mat> ldlt(N);
     if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 1e-12 * ldlt.vectorD().maxCoeff())) {
       return fail(LsmFailure::Singular);
