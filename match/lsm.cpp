@@ -10,26 +10,6 @@
 namespace photomill::match {
 namespace {
 
-// Keys' cubic convolution kernel (a = -0.5; Keys 1981, eq. 15) and its derivative. Bilinear
-// interpolation would bias the match towards whole pixels ("pixel locking", up to ~0.06 px on a
-// speckle texture in lsm_test); the cubic kernel reproduces quadratics and leaves a few thousandths.
-inline void keys_weights(double t, double w[4], double dw[4]) {
-  // Taps at offsets -1, 0, 1, 2 from floor(x); t = x - floor(x) in [0, 1).
-  const double a = -0.5;
-  const double d[4] = {1 + t, t, 1 - t, 2 - t};
-  for (int k = 0; k < 4; ++k) {
-    const double x = d[k];
-    const double sgn = k < 2 ? 1.0 : -1.0;  // d/dt of the distance
-    if (x < 1) {
-      w[k] = ((a + 2) * x - (a + 3)) * x * x + 1;
-      dw[k] = sgn * ((3 * (a + 2) * x - 2 * (a + 3)) * x);
-    } else {
-      w[k] = ((a * x - 5 * a) * x + 8 * a) * x - 4 * a;
-      dw[k] = sgn * ((3 * a * x - 10 * a) * x + 8 * a);
-    }
-  }
-}
-
 bool sample(const cv::Mat& im, double x, double y, double& v) {
   double gx, gy;
   return sample_cubic(im, x, y, v, gx, gy);
@@ -136,29 +116,6 @@ double correlation_of(std::span<const double> a, std::span<const double> b) {
   }
   return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 0.0;
 }
-
-bool sample_cubic(const cv::Mat& im, double x, double y, double& v, double& gx, double& gy) {
-  if (!(x >= 1 && y >= 1 && x < im.cols - 2 && y < im.rows - 2)) return false;
-  const int x0 = static_cast<int>(std::floor(x));
-  const int y0 = static_cast<int>(std::floor(y));
-  double wx[4], dwx[4], wy[4], dwy[4];
-  keys_weights(x - x0, wx, dwx);
-  keys_weights(y - y0, wy, dwy);
-  v = gx = gy = 0;
-  for (int j = 0; j < 4; ++j) {
-    const float* row = im.ptr<float>(y0 - 1 + j) + (x0 - 1);
-    double r = 0, dr = 0;
-    for (int i = 0; i < 4; ++i) {
-      r += wx[i] * row[i];
-      dr += dwx[i] * row[i];
-    }
-    v += wy[j] * r;
-    gx += wy[j] * dr;
-    gy += dwy[j] * r;
-  }
-  return true;
-}
-
 
 const char* to_string(LsmFailure f) {
   switch (f) {
