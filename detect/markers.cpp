@@ -240,17 +240,27 @@ ModelFit fit_edge_model(const std::vector<Sample>& samples, const Footprint& fp,
   constexpr int P = NC + 7;
   using Vec = Eigen::Matrix<double, P, 1>;
   using Mat = Eigen::Matrix<double, P, P>;
-  auto evaluate = [&](const Vec& p, Mat* JtJ, Vec* Jtr) {
+  // The model's responses at every sample for parameters p, into `out`; returns the cost.
+  auto responses = [&](const Vec& p, std::vector<Response>& out) {
     double cost = 0;
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+      const double r = samples[i].value - model_value<NC>(p, samples[i], fp, &out[i]);
+      cost += r * r;
+    }
+    return cost;
+  };
+  // J^T J and J^T r at p from its responses `rs` (J^T J summed in its lower triangle, then
+  // mirrored: the same sums as the full outer products').
+  auto normal = [&](const Vec& p, const std::vector<Response>& rs, Mat& JtJ, Vec& Jtr) {
     Mat A = Mat::Zero();
     Vec g = Vec::Zero();
     Vec row;
-    for (const Sample& smp : samples) {
-      Response resp;
-      const double r = smp.value - model_value<NC>(p, smp, fp, &resp);
-      cost += r * r;
-      if (!JtJ) continue;
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+      const Sample& smp = samples[i];
+      const Response& resp = rs[i];
+      const double a = p[NC + 1] + p[NC + 2] * smp.tau + p[NC + 3] * smp.s;
       const double b = p[NC + 4] + p[NC + 5] * smp.tau + p[NC + 6] * smp.s;
+      const double r = smp.value - (a + b * resp.r);
       double tj = 1;
       for (int j = 0; j < NC; ++j, tj *= smp.tau) row[j] = -b * resp.dr_dx * tj;
       row[NC] = b * resp.dr_dsigma;
@@ -260,19 +270,22 @@ ModelFit fit_edge_model(const std::vector<Sample>& samples, const Footprint& fp,
       row[NC + 4] = resp.r;
       row[NC + 5] = smp.tau * resp.r;
       row[NC + 6] = smp.s * resp.r;
-      A.noalias() += row * row.transpose();
+      for (int c = 0; c < P; ++c) {
+        for (int k = c; k < P; ++k) A(k, c) += row[k] * row[c];
+      }
       g += r * row;
     }
-    if (JtJ) {
-      *JtJ = A;
-      *Jtr = g;
-    }
-    return cost;
+    JtJ = A.template selfadjointView<Eigen::Lower>();
+    Jtr = g;
   };
+  // The responses at x are kept, so an accepted trial's are not computed again for its J.
+  std::vector<Response> at_x(samples.size()), at_trial(samples.size());
   Vec x = x_io;
   Mat JtJ;
   Vec Jtr;
-  double cost = evaluate(x, &JtJ, &Jtr);
+  double cost = responses(x, at_x);
+  normal(x, at_x, JtJ, Jtr);
+  bool normal_current = true;  // JtJ and Jtr are those of x
   double lambda = 1e-3;
   bool improved = false;
   for (int it = 0; it < max_iterations; ++it) {
@@ -282,27 +295,30 @@ ModelFit fit_edge_model(const std::vector<Sample>& samples, const Footprint& fp,
     if (!dx.allFinite()) break;
     Vec trial = x + dx;
     trial[NC] = std::clamp(trial[NC], kMinSigmaPx, max_sigma * 2);
-    const double trial_cost = evaluate(trial, nullptr, nullptr);
+    const double trial_cost = responses(trial, at_trial);
     if (trial_cost < cost) {
       const Vec step = trial - x;  // sigma may have been clamped
       x = trial;
       cost = trial_cost;
+      std::swap(at_x, at_trial);
+      normal_current = false;
       improved = true;
       lambda = std::max(lambda / 3, 1e-9);
       // |df(tau)| <= sum_j |dc_j| 2^-j over tau in [-1/2, 1/2].
       double curve_step = 0;
       for (int j = 0; j < NC; ++j) curve_step += std::abs(step[j]) * std::ldexp(1.0, -j);
       if (curve_step < tolerance_px && std::abs(step[NC]) < tolerance_px) break;
-      cost = evaluate(x, &JtJ, &Jtr);
+      normal(x, at_x, JtJ, Jtr);
+      normal_current = true;
     } else {
       lambda *= 2;
       if (lambda > 1e8) break;
     }
   }
+  if (!normal_current) normal(x, at_x, JtJ, Jtr);
   x_io = x;
   ModelFit result;
   result.ok = improved || cost == 0;
-  cost = evaluate(x, &JtJ, &Jtr);
   const double dof = static_cast<double>(samples.size()) - P;
   const double var = JtJ.inverse()(NC - 1, NC - 1) * cost / std::max(1.0, dof);
   result.top_z = var > 0 ? std::abs(x[NC - 1]) / std::sqrt(var) : 0;
