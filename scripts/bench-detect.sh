@@ -8,7 +8,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 build=${1:-build}
 runs=${PHOTOMILL_BENCH_RUNS:-3}
-cmake --build "$build" --target detect match detect_marker_check match_track_check -j"$(nproc)" >/dev/null
+cmake --build "$build" --target detect match detect_marker_check detect_marker_bench match_track_check -j"$(nproc)" >/dev/null
 bin=$build/bin
 tools=$build/tools/bin
 work=$(mktemp -d)
@@ -60,3 +60,7 @@ echo
 echo "== tracks against the true geometry =="
 "$bin/match" "$work/obs.csv" --features "$work/feat" --camera data/demo/camera.yaml -o /dev/null 2>&1 | sed 's/^/  /'
 "$tools/match_track_check" "$work/tracks.csv" --set data/demo
+
+echo
+echo "== markers, one thread each: photomill's edge fit against OpenCV's detectMarkers + CORNER_REFINE_SUBPIX =="
+"$tools/detect_marker_bench" "${photos[@]}" --set data/demo --runs 7
