@@ -5,12 +5,14 @@
 # wall time and camera-centre error against the demo's true poses for each: after a similarity
 # alignment for both (COLMAP has no datum), and in the control points' frame for photomill.
 # COLMAP is a peer for benchmarks only; the script says so and stops if it is not installed.
-#   scripts/bench-colmap-pipeline.sh [build-dir]      (default: build)
+# Another synth folder (synth's part_*.jpg, camera.yaml, poses.csv, control_points.csv, its
+# plate markers 0-13 of 24 mm as the demo's) may be given instead of the demo.
+#   scripts/bench-colmap-pipeline.sh [build-dir] [set-dir]      (defaults: build, data/demo)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 build=${1:-build}
 bin=$build/bin
-demo=data/demo
+demo=${2:-data/demo}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 threads=$(nproc)
