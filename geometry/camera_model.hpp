@@ -54,9 +54,10 @@ struct ModelShape {
   bool thin_prism = false;
   bool tilted = false;
 };
-inline ModelShape shape_of(const CameraModel& m) {
-  return {m.skew, m.distortion_count >= 8, m.distortion_count >= 12, m.distortion_count >= 14};
+inline ModelShape shape_of_count(int distortion_count, double skew = 0) {
+  return {skew, distortion_count >= 8, distortion_count >= 12, distortion_count >= 14};
 }
+inline ModelShape shape_of(const CameraModel& m) { return shape_of_count(m.distortion_count, m.skew); }
 
 // Converts camera.yaml's camera (validated first: throws InputError(source, 0, ...)).
 CameraModel to_camera_model(const Camera& camera, const std::string& source);

@@ -88,6 +88,18 @@ std::vector<int> constant_intrinsics(IntrinsicsRefinement level, int distortion_
   return constant;
 }
 
+int intrinsics_block_size(IntrinsicsRefinement level, int distortion_count) {
+  const std::vector<int> constant = constant_intrinsics(level, distortion_count);
+  int size = intrinsics_read(geometry::shape_of_count(distortion_count));
+  for (int i = 0; i < kIntrinsicCount; ++i) {
+    if (std::find(constant.begin(), constant.end(), i) == constant.end()) size = std::max(size, i + 1);
+  }
+  for (int s : {static_cast<int>(kK4), static_cast<int>(kS1), static_cast<int>(kTauX)}) {
+    if (size <= s) return s;
+  }
+  return kIntrinsicCount;
+}
+
 bool in_adjustment(const Scene& scene, std::size_t track, std::size_t active) {
   const SceneTrack& t = scene.tracks[track];
   if (t.at_control) return active >= 1;
@@ -132,7 +144,9 @@ std::shared_ptr<ceres::ParameterBlockOrdering> build_problem(Scene& scene, const
                                                              const BundleOptions& options, ceres::Problem& problem,
                                                              BundleSummary& out) {
   const bool refine_intrinsics = options.refine_intrinsics != IntrinsicsRefinement::None;
+  // The refined intrinsics' block: the first block_size of the camera's (the rest held fixed).
   double* intrinsics = scene.camera.params.data();
+  const int block_size = intrinsics_block_size(options.refine_intrinsics, scene.camera.distortion_count);
 
   const AdjustmentLayout layout = adjustment_layout(scene, setup, options.threads);
   const auto& active = layout.active;
@@ -150,7 +164,7 @@ std::shared_ptr<ceres::ParameterBlockOrdering> build_problem(Scene& scene, const
       const ObservationRef& ob = scene.observations[o];
       double* pose = scene.images[ob.image].cam_from_world.data();
       ceres::CostFunction* cost =
-          refine_intrinsics ? ReprojectionErrorWithIntrinsics::create(shape_of(scene.camera), ob.uv_px, setup.sigma_of(ob))
+          refine_intrinsics ? reprojection_error_with_intrinsics(block_size, shape_of(scene.camera), ob.uv_px, setup.sigma_of(ob))
                             : ReprojectionError::create(&scene.camera, ob.uv_px, setup.sigma_of(ob));
       // The loss acts on whitened residuals: its scale in pixels divided by the same sigma.
       ceres::LossFunction* loss = make_loss(options.loss, options.loss_scale_px / setup.sigma_of(ob));
@@ -194,8 +208,11 @@ std::shared_ptr<ceres::ParameterBlockOrdering> build_problem(Scene& scene, const
   }
   if (refine_intrinsics && problem.HasParameterBlock(intrinsics)) {
     ordering->AddElementToGroup(intrinsics, 1);
-    const std::vector<int> constant = constant_intrinsics(options.refine_intrinsics, scene.camera.distortion_count);
-    if (!constant.empty()) problem.SetManifold(intrinsics, new ceres::SubsetManifold(kIntrinsicCount, constant));
+    std::vector<int> constant;
+    for (int k : constant_intrinsics(options.refine_intrinsics, scene.camera.distortion_count)) {
+      if (k < block_size) constant.push_back(k);
+    }
+    if (!constant.empty()) problem.SetManifold(intrinsics, new ceres::SubsetManifold(block_size, constant));
   }
   out.residual_blocks = static_cast<std::size_t>(problem.NumResidualBlocks());
   return ordering;

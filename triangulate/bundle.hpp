@@ -134,6 +134,10 @@ BundleSummary bundle_adjust(Scene& scene, const BundleSetup& setup, const Bundle
 // Indices into IntrinsicIndex that stay constant under a refinement level, for a camera with
 // `distortion_count` coefficients from camera.yaml.
 std::vector<int> constant_intrinsics(IntrinsicsRefinement level, int distortion_count);
+// The size of the intrinsics block the adjustment refines: the first this many of IntrinsicIndex
+// (9, 12, 16 or 18), the smallest that holds every intrinsic the level refines and every one the
+// camera's model reads (the rest, which the projection ignores, stay outside the block).
+int intrinsics_block_size(IntrinsicsRefinement level, int distortion_count);
 
 // Reprojection error in pixels of one observation with the current estimates (infinity if the
 // point is behind the camera).

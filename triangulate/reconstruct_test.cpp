@@ -220,6 +220,39 @@ TEST(Reconstruct, SelfCalibrationRecoversTheIntrinsics) {
   ASSERT_EQ(r.report.refined_camera.size(), 4 + truth.camera.distortion.size());
 }
 
+// The refined intrinsics' block holds every intrinsic the camera's model reads (9 for OpenCV's
+// 5 coefficients, 12 rational, 16 thin prism, 18 tilted) and every one the level refines.
+TEST(Bundle, IntrinsicsBlockHoldsWhatTheModelReadsAndWhatIsRefined) {
+  EXPECT_EQ(intrinsics_block_size(IntrinsicsRefinement::Focal, 5), 9);
+  EXPECT_EQ(intrinsics_block_size(IntrinsicsRefinement::FocalPrincipalPoint, 0), 9);
+  EXPECT_EQ(intrinsics_block_size(IntrinsicsRefinement::All, 4), 9);
+  EXPECT_EQ(intrinsics_block_size(IntrinsicsRefinement::All, 5), 9);
+  EXPECT_EQ(intrinsics_block_size(IntrinsicsRefinement::Focal, 8), 12);
+  EXPECT_EQ(intrinsics_block_size(IntrinsicsRefinement::All, 8), 12);
+  EXPECT_EQ(intrinsics_block_size(IntrinsicsRefinement::All, 12), 16);
+  EXPECT_EQ(intrinsics_block_size(IntrinsicsRefinement::All, 14), 18);
+}
+
+// The focal level refines fx and fy alone: the principal point and the distortion stay as given.
+TEST(Reconstruct, SelfCalibrationOfTheFocalLengthAlone) {
+  const SceneTruth truth = test::make_scene({});
+  ReconstructInput in = input_of(truth);
+  in.control_points = truth.plate_points;
+  in.camera.camera_matrix(0, 0) *= 1.003;
+  in.camera.camera_matrix(1, 1) *= 1.003;
+  ReconstructOptions o;
+  o.bundle.refine_intrinsics = IntrinsicsRefinement::Focal;
+  const Reconstruction r = reconstruct(in, o);
+  EXPECT_NEAR(r.camera.fx(), truth.camera.fx(), 1e-4 * truth.camera.fx());
+  EXPECT_NEAR(r.camera.fy(), truth.camera.fy(), 1e-4 * truth.camera.fy());
+  EXPECT_EQ(r.camera.cx(), in.camera.camera_matrix(0, 2));
+  EXPECT_EQ(r.camera.cy(), in.camera.camera_matrix(1, 2));
+  for (std::size_t k = 0; k < r.camera.distortion.size(); ++k) {
+    EXPECT_EQ(r.camera.distortion[k], in.camera.distortion[k]) << "coefficient " << k;
+  }
+  EXPECT_EQ(r.report.refine_intrinsics, "focal");
+}
+
 TEST(Reconstruct, TrackSeenOnceIsDroppedNotFatal) {
   const SceneTruth truth = test::make_scene({});
   ReconstructInput in = input_of(truth);

@@ -42,8 +42,14 @@ struct ReprojectionError {
 
 // Reprojection error with the intrinsics as a parameter block (self-calibration).
 //   r = (pi(k; R(aa) X + t) - u) / sigma_px                                  (2 values)
-// Parameters: pose[0..5] and point[0..2] as above; intrinsics[0..17] in geometry/camera_model.hpp's
-// IntrinsicIndex layout (fx fy cx cy k1 k2 p1 p2 k3 k4 k5 k6 s1 s2 s3 s4 tau_x tau_y); the skew is fixed.
+// Parameters: pose[0..5] and point[0..2] as above; k[0..N-1] = the first N intrinsics in
+// geometry/camera_model.hpp's IntrinsicIndex layout (fx fy cx cy k1 k2 p1 p2 k3 k4 k5 k6 s1 s2
+// s3 s4 tau_x tau_y), the skew fixed. N is the number the camera's model reads (9 for OpenCV's
+// 5 coefficients, 12 rational, 16 with the thin prism, 18 tilted: intrinsics_block_size), so the
+// block holds nothing the projection ignores: automatic differentiation carries 9 + N derivatives
+// per value, and with all 18 in every block the demo's adjustments spent a third of their time
+// on derivatives of coefficients its model does not have.
+template <int N>
 struct ReprojectionErrorWithIntrinsics {
   ReprojectionErrorWithIntrinsics(const ModelShape& shape, const Eigen::Vector2d& uv_px, double sigma_px)
       : shape(shape), u(uv_px.x()), v(uv_px.y()), inv_sigma(1.0 / sigma_px) {}
@@ -57,14 +63,30 @@ struct ReprojectionErrorWithIntrinsics {
     return true;
   }
 
-  static ceres::CostFunction* create(const ModelShape& shape, const Eigen::Vector2d& uv_px, double sigma_px) {
-    return new ceres::AutoDiffCostFunction<ReprojectionErrorWithIntrinsics, 2, 6, 3, kIntrinsicCount>(
-        new ReprojectionErrorWithIntrinsics(shape, uv_px, sigma_px));
-  }
-
   ModelShape shape;
   double u, v, inv_sigma;
 };
+
+// The intrinsics a camera model's projection reads: the first this many of IntrinsicIndex.
+constexpr int intrinsics_read(const ModelShape& shape) {
+  return shape.tilted ? kIntrinsicCount : shape.thin_prism ? kTauX : shape.rational ? kS1 : kK4;
+}
+
+// ReprojectionErrorWithIntrinsics<block_size>, block_size one of 9, 12, 16, 18 and at least
+// intrinsics_read(shape).
+inline ceres::CostFunction* reprojection_error_with_intrinsics(int block_size, const ModelShape& shape,
+                                                               const Eigen::Vector2d& uv_px, double sigma_px) {
+  auto make = [&]<int N>() -> ceres::CostFunction* {
+    return new ceres::AutoDiffCostFunction<ReprojectionErrorWithIntrinsics<N>, 2, 6, 3, N>(
+        new ReprojectionErrorWithIntrinsics<N>(shape, uv_px, sigma_px));
+  };
+  switch (block_size) {
+    case kK4: return make.template operator()<kK4>();
+    case kS1: return make.template operator()<kS1>();
+    case kTauX: return make.template operator()<kTauX>();
+    default: return make.template operator()<kIntrinsicCount>();
+  }
+}
 
 // Prior on a control point with known coordinates X0 and standard deviation sigma per axis:
 //   r = (X - X0) / sigma_mm                                                   (3 values)
