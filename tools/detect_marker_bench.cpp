@@ -4,7 +4,7 @@
 // once, before the clocks start. Prints, per method, the thread CPU time of the fastest of
 // --runs passes over all photos and the corners' RMS and largest error against a synth folder's
 // true projections (issue #30: photomill at most 1.5 times OpenCV's time, at 0.03 px RMS or
-// better). OpenCV runs with its default detector parameters (cornerSubPix: 5 x 5 px window, 30
+// better). OpenCV runs with its default detector parameters (cornerSubPix: half-window 5 px, 30
 // iterations, 0.1 px), and, as `detect --corner-refine subpix` does, with 100 iterations to
 // 0.001 px.
 #include <algorithm>
