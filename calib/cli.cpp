@@ -9,6 +9,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "calib/rig.hpp"
 #include "geometry/board.hpp"
 #include "formats/error.hpp"
 #include "formats/text.hpp"
@@ -67,7 +68,17 @@ void add_options(CLI::App& app, CalibCli& c) {
   app.add_option("--min-points", o.min_points_per_view, "Skip views with fewer control-point observations")
       ->group(g_q)->capture_default_str()->check(CLI::Range(4, 1000000));
   app.add_option("--report", c.report, "Write a JSON report to FILE")->group(g_q);
-  app.add_option("--plot", c.plot, "Write the residual vectors over the image frame to FILE.png")->group(g_q);
+  auto* plot = app.add_option("--plot", c.plot, "Write the residual vectors over the image frame to FILE.png")->group(g_q);
+
+  const std::string g_r = "Rig (several cameras at once, e.g. a stereo pair)";
+  app.add_option("--rig", c.rig,
+                 "Image name prefix of one rig camera (e.g. left, or cam1/); give it once per camera, the "
+                 "reference camera first. Photos named alike but for the prefix were taken at once. Writes rig.yaml")
+      ->group(g_r)->allow_extra_args(false)->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)->excludes(plot);
+  app.add_flag("--rig-fix-intrinsics", c.rig_fix_intrinsics,
+               "Hold each camera's intrinsics at its own calibration's (OpenCV's CALIB_FIX_INTRINSIC); by default "
+               "the rig adjustment refines them too")
+      ->group(g_r);
 }
 
 CalibOptions to_options(const CalibCli& c) {
@@ -112,16 +123,11 @@ std::vector<ControlPoint> load_control(const CalibCli& c) {
   return geometry::board_control_points(spec);
 }
 
-namespace {
-
-// The observation files' names, for errors about their content.
 std::string observation_sources(const CalibCli& c) {
   std::string sources;
   for (const auto& p : c.observations) sources += (sources.empty() ? "" : ", ") + tool::source_name(p);
   return sources;
 }
-
-}  // namespace
 
 namespace {
 
@@ -220,6 +226,15 @@ cv::Size resolve_image_size(const CalibCli& c, const std::vector<Observation>& o
                                            "to that image");
   }
   return *size;
+}
+
+std::vector<cv::Size> resolve_rig_image_sizes(const CalibCli& c, const std::vector<Observation>& observations) {
+  if (c.rig.size() < 2) throw UsageError("--rig: give two image name prefixes or more (one per camera)");
+  std::vector<cv::Size> sizes;
+  for (const auto& part : split_by_camera(observations, c.rig, observation_sources(c))) {
+    sizes.push_back(resolve_image_size(c, part));
+  }
+  return sizes;
 }
 
 }  // namespace photomill::calib

@@ -23,6 +23,8 @@ struct CalibCli {
   std::string simplex_scaling = "jacobian";
   std::string report;       // JSON
   std::string plot;         // PNG
+  std::vector<std::string> rig;  // image name prefixes, one per rig camera (camera 0 first)
+  bool rig_fix_intrinsics = false;
   CalibOptions options;
 };
 
@@ -36,11 +38,17 @@ std::vector<ControlPoint> load_control(const CalibCli& cli);
 
 // Throws InputError naming the observation source(s) if they hold no observation, or none that
 // refers to a control point (docs/errors.md).
+// The observation files' names, for errors about their content.
+std::string observation_sources(const CalibCli& cli);
+
 void check_observations(const CalibCli& cli, const std::vector<Observation>& observations,
                         const std::vector<ControlPoint>& control);
 
 // --image-size, else the size of the images named in the observations; throws UsageError if
 // neither is available.
 cv::Size resolve_image_size(const CalibCli& cli, const std::vector<Observation>& observations);
+
+// With --rig: the image size of each rig camera (from --image-size, or each camera's images).
+std::vector<cv::Size> resolve_rig_image_sizes(const CalibCli& cli, const std::vector<Observation>& observations);
 
 }  // namespace photomill::calib

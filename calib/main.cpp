@@ -6,6 +6,7 @@
 
 #include "calib/cli.hpp"
 #include "calib/report.hpp"
+#include "calib/rig.hpp"
 #include "formats/camera.hpp"
 #include "formats/log.hpp"
 #include "formats/tool.hpp"
@@ -28,6 +29,27 @@ int main(int argc, char** argv) {
           observations.insert(observations.end(), part.begin(), part.end());
         }
         calib::check_observations(cli, observations, control);
+        if (!cli.rig.empty()) {
+          calib::RigCalibOptions rig_options;
+          rig_options.camera = options;
+          rig_options.lm = options.lm;
+          rig_options.fix_intrinsics = cli.rig_fix_intrinsics;
+          const calib::RigResult rig = calib::calibrate_rig(observations, control, cli.rig,
+                                                            calib::resolve_rig_image_sizes(cli, observations),
+                                                            rig_options, calib::observation_sources(cli));
+          tool::OutputFile rig_out(cli.output);
+          write_rig_yaml(rig_out.stream(), rig.rig);
+          std::optional<tool::OutputFile> report_out;
+          if (!cli.report.empty()) {
+            report_out.emplace(cli.report);
+            calib::write_rig_json_report(report_out->stream(), rig);
+          }
+          for (const auto& line : calib::rig_text_report(rig)) log::info(line);
+          for (const auto& w : rig.warnings) log::warn(w);
+          if (report_out) report_out->commit();
+          rig_out.commit();
+          return;
+        }
         const cv::Size size = calib::resolve_image_size(cli, observations);
 
         const calib::CalibResult result = calib::calibrate(observations, control, size, options);

@@ -111,7 +111,12 @@ std::optional<double> yaml_special(std::string_view v) {
 
 class CameraYaml {
 public:
-  CameraYaml(const std::string& text, const std::string& source) : source_(source) { parse(lines_of(text)); }
+  // `kind` names the file in errors ("camera", "rig").
+  CameraYaml(const std::string&& text, const std::string& source, std::string kind = "camera") = delete;
+  CameraYaml(const std::string& text, const std::string& source, std::string kind = "camera")
+      : source_(source), kind_(std::move(kind)) {
+    parse(lines_of(text));
+  }
 
   const Entry* find(const std::string& key) const {
     const auto it = entries_.find(key);
@@ -140,6 +145,20 @@ public:
     const auto v = parse_double(e.value);
     if (!v) throw InputError(source_, e.line, "'" + key + "' is not a number: '" + std::string(e.value) + "'");
     return *v;
+  }
+
+  // A string scalar: "double quoted" (no escapes) or plain.
+  std::string text(const std::string& key) const {
+    const Entry& e = require(key);
+    scalar_only(e, key);
+    std::string_view v = e.value;
+    if (!v.empty() && v.front() == '"') {
+      if (v.size() < 2 || v.back() != '"' || v.substr(1, v.size() - 2).find_first_of("\\\"") != std::string_view::npos) {
+        throw InputError(source_, e.line, "'" + key + "' is not a plain double-quoted string: " + std::string(v));
+      }
+      v = v.substr(1, v.size() - 2);
+    }
+    return std::string(v);
   }
 
   struct Matrix {
@@ -254,7 +273,7 @@ private:
     if (i < lines.size() && lines[i].text.rfind("%", 0) == 0) {
       const std::string_view d = trim(lines[i].text);
       if (d.rfind("%YAML:1.", 0) != 0 && d.rfind("%YAML 1.", 0) != 0) {
-        throw InputError(source_, lines[i].number, "not an OpenCV camera YAML file: unsupported directive '" +
+        throw InputError(source_, lines[i].number, "not an OpenCV " + kind_ + " YAML file: unsupported directive '" +
                                                        std::string(d.substr(0, 40)) + "'");
       }
       ++i;
@@ -270,7 +289,7 @@ private:
       if (trim(l.text) == "...") break;  // end of the document
       const auto kv = indented(l.text) ? std::nullopt : key_value(l.text);
       if (!kv) {
-        throw InputError(source_, l.number, "not an OpenCV camera YAML file: expected 'key: value' at the start of the line");
+        throw InputError(source_, l.number, "not an OpenCV " + kind_ + " YAML file: expected 'key: value' at the start of the line");
       }
       Entry e{l.number, kv->value, {}};
       for (++i; i < lines.size() && (indented(lines[i].text) || blank_or_comment(lines[i].text)); ++i) {
@@ -280,10 +299,11 @@ private:
         throw InputError(source_, l.number, "duplicate key '" + std::string(kv->key) + "'");
       }
     }
-    if (entries_.empty()) throw InputError(source_, 0, "not an OpenCV camera YAML file: no 'key: value' entries");
+    if (entries_.empty()) throw InputError(source_, 0, "not an OpenCV " + kind_ + " YAML file: no 'key: value' entries");
   }
 
   std::string source_;
+  std::string kind_;
   std::map<std::string, Entry> entries_;
 };
 
@@ -336,77 +356,236 @@ void validate_camera(const Camera& c, const std::string& source) {
   }
 }
 
-Camera read_camera_yaml(std::istream& in, const std::string& source, CameraYamlLimits limits) {
-  std::string text;
-  {
-    char buf[4096];
-    while (in.read(buf, sizeof buf) || in.gcount() > 0) {
-      text.append(buf, static_cast<std::size_t>(in.gcount()));
-      if (text.size() > limits.max_bytes) {
-        throw InputError(source, 0, "larger than " + std::to_string(limits.max_bytes) + " bytes, not a camera file");
-      }
-      if (!in) break;
-    }
-  }
-  if (trim(text).empty()) throw InputError(source, 0, "empty input: expected an OpenCV camera YAML file");
-  if (text.find('\0') != std::string::npos) throw InputError(source, 0, "binary data, not a camera YAML file");
-  if (text.rfind("\xEF\xBB\xBF", 0) == 0) text.erase(0, 3);
+namespace {
 
-  const CameraYaml yaml(text, source);
+// The whole input, refused before parsing if it is larger than a camera file can be, empty or binary.
+std::string read_small_text(std::istream& in, const std::string& source, const CameraYamlLimits& limits,
+                            const std::string& kind) {
+  std::string text;
+  char buf[4096];
+  while (in.read(buf, sizeof buf) || in.gcount() > 0) {
+    text.append(buf, static_cast<std::size_t>(in.gcount()));
+    if (text.size() > limits.max_bytes) {
+      throw InputError(source, 0, "larger than " + std::to_string(limits.max_bytes) + " bytes, not a " + kind + " file");
+    }
+    if (!in) break;
+  }
+  if (trim(text).empty()) throw InputError(source, 0, "empty input: expected an OpenCV " + kind + " YAML file");
+  if (text.find('\0') != std::string::npos) throw InputError(source, 0, "binary data, not a " + kind + " YAML file");
+  if (text.rfind("\xEF\xBB\xBF", 0) == 0) text.erase(0, 3);
+  return text;
+}
+
+// The camera whose keys are `prefix` + OpenCV's names (image_width, camera_matrix, ...).
+Camera camera_from(const CameraYaml& yaml, const std::string& source, const std::string& prefix) {
   Camera c;
-  c.image_width_px = yaml.integer("image_width");
-  c.image_height_px = yaml.integer("image_height");
-  const CameraYaml::Matrix k = yaml.matrix("camera_matrix");
-  if (k.rows != 3 || k.cols != 3) throw InputError(source, yaml.require("camera_matrix").line, "camera_matrix must be 3x3");
+  c.image_width_px = yaml.integer(prefix + "image_width");
+  c.image_height_px = yaml.integer(prefix + "image_height");
+  const std::string km = prefix + "camera_matrix";
+  const CameraYaml::Matrix k = yaml.matrix(km);
+  if (k.rows != 3 || k.cols != 3) throw InputError(source, yaml.require(km).line, km + " must be 3x3");
   for (int r = 0; r < 3; ++r) {
     for (int col = 0; col < 3; ++col) c.camera_matrix(r, col) = k.data[static_cast<std::size_t>(r * 3 + col)];
   }
-  if (yaml.find("distortion_coefficients") != nullptr) {
-    const CameraYaml::Matrix d = yaml.matrix("distortion_coefficients");
-    if (d.rows != 1 && d.cols != 1) {
-      throw InputError(source, yaml.require("distortion_coefficients").line, "distortion_coefficients must be a vector");
-    }
+  const std::string kd = prefix + "distortion_coefficients";
+  if (yaml.find(kd) != nullptr) {
+    const CameraYaml::Matrix d = yaml.matrix(kd);
+    if (d.rows != 1 && d.cols != 1) throw InputError(source, yaml.require(kd).line, kd + " must be a vector");
     c.distortion = d.data;
   }
-  if (const Entry* e = yaml.find("avg_reprojection_error")) c.avg_reprojection_error_px = yaml.real(*e, "avg_reprojection_error");
-  validate_camera(c, source);
+  const std::string ke = prefix + "avg_reprojection_error";
+  if (const Entry* e = yaml.find(ke)) c.avg_reprojection_error_px = yaml.real(*e, ke);
+  validate_camera(c, prefix.empty() ? source : source + " (" + prefix.substr(0, prefix.size() - 1) + ")");
   return c;
 }
 
-void write_camera_yaml(std::ostream& out, const Camera& camera) {
-  validate_camera(camera, "camera to write");
-  // Written by hand rather than through cv::FileStorage so numbers round-trip exactly
-  // (FileStorage prints 16 significant digits); the layout is FileStorage's, so OpenCV reads it.
-  auto matrix = [](const std::string& key, int rows, int cols, const std::vector<double>& data) {
-    std::string s = key + ": !!opencv-matrix\n   rows: " + std::to_string(rows) + "\n   cols: " +
-                    std::to_string(cols) + "\n   dt: d\n   data: [ ";
-    for (std::size_t i = 0; i < data.size(); ++i) {
-      if (i) s += ", ";
-      std::string v = format_double(data[i]);
-      // YAML needs a '.' or exponent to read a real; "1" would be an int (OpenCV accepts both,
-      // but keep the file unambiguous for other YAML readers).
-      if (v.find_first_of(".eEn") == std::string::npos) v += ".";
-      s += v;
-    }
-    return s + " ]\n";
-  };
+// A real as YAML reads a real: with a '.' or an exponent ("1" would be an int).
+std::string yaml_real(double value) {
+  std::string v = format_double(value);
+  if (v.find_first_of(".eEn") == std::string::npos) v += ".";
+  return v;
+}
+
+// Written by hand rather than through cv::FileStorage so numbers round-trip exactly
+// (FileStorage prints 16 significant digits); the layout is FileStorage's, so OpenCV reads it.
+std::string matrix_entry(const std::string& key, int rows, int cols, const std::vector<double>& data) {
+  std::string s = key + ": !!opencv-matrix\n   rows: " + std::to_string(rows) + "\n   cols: " + std::to_string(cols) +
+                  "\n   dt: d\n   data: [ ";
+  for (std::size_t i = 0; i < data.size(); ++i) s += (i ? ", " : "") + yaml_real(data[i]);
+  return s + " ]\n";
+}
+
+std::string camera_entries(const Camera& camera, const std::string& prefix) {
   std::vector<double> k(9);
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) k[static_cast<std::size_t>(r * 3 + c)] = camera.camera_matrix(r, c);
   }
-  std::string text = "%YAML:1.0\n---\n" + stamp_line(std::nullopt);
-  text += "image_width: " + std::to_string(camera.image_width_px) + "\n";
-  text += "image_height: " + std::to_string(camera.image_height_px) + "\n";
-  text += matrix("camera_matrix", 3, 3, k);
+  std::string text = prefix + "image_width: " + std::to_string(camera.image_width_px) + "\n";
+  text += prefix + "image_height: " + std::to_string(camera.image_height_px) + "\n";
+  text += matrix_entry(prefix + "camera_matrix", 3, 3, k);
   if (!camera.distortion.empty()) {
-    text += matrix("distortion_coefficients", static_cast<int>(camera.distortion.size()), 1, camera.distortion);
+    text += matrix_entry(prefix + "distortion_coefficients", static_cast<int>(camera.distortion.size()), 1,
+                         camera.distortion);
   }
   if (camera.avg_reprojection_error_px) {
-    std::string v = format_double(*camera.avg_reprojection_error_px);
-    if (v.find_first_of(".eE") == std::string::npos) v += ".";
-    text += "avg_reprojection_error: " + v + "\n";
+    text += prefix + "avg_reprojection_error: " + yaml_real(*camera.avg_reprojection_error_px) + "\n";
   }
+  return text;
+}
+
+}  // namespace
+
+Camera read_camera_yaml(std::istream& in, const std::string& source, CameraYamlLimits limits) {
+  const std::string text = read_small_text(in, source, limits, "camera");  // the parser's views point into it
+  const CameraYaml yaml(text, source);
+  return camera_from(yaml, source, "");
+}
+
+void write_camera_yaml(std::ostream& out, const Camera& camera) {
+  validate_camera(camera, "camera to write");
+  out << "%YAML:1.0\n---\n" + stamp_line(std::nullopt) + camera_entries(camera, "");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Rig files: the cameras' entries under "camera_K_", K = 0..rig_cameras-1, each with its image
+// name prefix and its pose in the rig's frame (docs/formats.md, rig.yaml).
+
+namespace {
+
+constexpr int kMaxRigCameras = 64;
+// A rotation matrix written with 17 digits is orthonormal to ~1e-16; one typed by hand from
+// six-digit values to ~1e-6.
+constexpr double kRotationTolerance = 1e-5;
+
+std::string rig_key(std::size_t k) { return "camera_" + std::to_string(k) + "_"; }
+
+void validate_rig(const Rig& rig, const std::string& source) {
+  if (rig.cameras.empty() || rig.cameras.size() > static_cast<std::size_t>(kMaxRigCameras)) {
+    throw InputError(source, 0, "a rig has 1 to " + std::to_string(kMaxRigCameras) + " cameras, not " +
+                                    std::to_string(rig.cameras.size()));
+  }
+  std::map<std::string, std::size_t> prefixes;
+  for (std::size_t k = 0; k < rig.cameras.size(); ++k) {
+    const RigCamera& c = rig.cameras[k];
+    const std::string who = "camera " + std::to_string(k);
+    if (c.prefix.empty()) throw InputError(source, 0, who + " has an empty image name prefix");
+    if (c.prefix.find_first_of("\"\\\n\r") != std::string::npos) {
+      throw InputError(source, 0, who + "'s prefix holds a quote, a backslash or a line end");
+    }
+    const auto [it, fresh] = prefixes.emplace(c.prefix, k);
+    if (!fresh) {
+      throw InputError(source, 0, "cameras " + std::to_string(it->second) + " and " + std::to_string(k) +
+                                      " have the same image name prefix '" + c.prefix + "'");
+    }
+    validate_camera(c.camera, source + " (" + who + ")");
+    const Eigen::Matrix3d& r = c.cam_from_rig_rotation;
+    if (!r.allFinite() || !c.cam_from_rig_translation_mm.allFinite()) {
+      throw InputError(source, 0, who + "'s pose in the rig has a non-finite value");
+    }
+    if ((r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > kRotationTolerance ||
+        !(r.determinant() > 0)) {
+      throw InputError(source, 0, who + "'s cam_from_rig_rotation is not a rotation matrix (orthonormal, det +1)");
+    }
+    if (c.cam_from_rig_sigma && !(c.cam_from_rig_sigma->allFinite() && c.cam_from_rig_sigma->minCoeff() >= 0)) {
+      throw InputError(source, 0, who + "'s cam_from_rig_sigma must be 6 non-negative numbers");
+    }
+  }
+  if (rig.avg_reprojection_error_px && !(std::isfinite(*rig.avg_reprojection_error_px) && *rig.avg_reprojection_error_px >= 0)) {
+    throw InputError(source, 0, "rig_avg_reprojection_error must be a non-negative number");
+  }
+}
+
+}  // namespace
+
+Rig read_rig_yaml(std::istream& in, const std::string& source, CameraYamlLimits limits) {
+  const std::string text = read_small_text(in, source, limits, "rig");  // the parser's views point into it
+  const CameraYaml yaml(text, source, "rig");
+  const int count = yaml.integer("rig_cameras");
+  if (count < 1 || count > kMaxRigCameras) {
+    throw InputError(source, yaml.require("rig_cameras").line,
+                     "rig_cameras: " + std::to_string(count) + "; a rig has 1 to " + std::to_string(kMaxRigCameras));
+  }
+  Rig rig;
+  for (std::size_t k = 0; k < static_cast<std::size_t>(count); ++k) {
+    const std::string p = rig_key(k);
+    RigCamera c;
+    c.prefix = yaml.text(p + "prefix");
+    c.camera = camera_from(yaml, source, p);
+    const CameraYaml::Matrix r = yaml.matrix(p + "cam_from_rig_rotation");
+    if (r.rows != 3 || r.cols != 3) {
+      throw InputError(source, yaml.require(p + "cam_from_rig_rotation").line, p + "cam_from_rig_rotation must be 3x3");
+    }
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) c.cam_from_rig_rotation(i, j) = r.data[static_cast<std::size_t>(i * 3 + j)];
+    }
+    const CameraYaml::Matrix t = yaml.matrix(p + "cam_from_rig_translation_mm");
+    if (t.rows * t.cols != 3 || (t.rows != 1 && t.cols != 1)) {
+      throw InputError(source, yaml.require(p + "cam_from_rig_translation_mm").line,
+                       p + "cam_from_rig_translation_mm must be a 3-vector");
+    }
+    c.cam_from_rig_translation_mm = Eigen::Vector3d(t.data[0], t.data[1], t.data[2]);
+    if (yaml.find(p + "cam_from_rig_sigma") != nullptr) {
+      const CameraYaml::Matrix s = yaml.matrix(p + "cam_from_rig_sigma");
+      if (s.rows * s.cols != 6 || (s.rows != 1 && s.cols != 1)) {
+        throw InputError(source, yaml.require(p + "cam_from_rig_sigma").line, p + "cam_from_rig_sigma must be a 6-vector");
+      }
+      c.cam_from_rig_sigma = Eigen::Map<const Eigen::Matrix<double, 6, 1>>(s.data.data());
+    }
+    rig.cameras.push_back(std::move(c));
+  }
+  if (yaml.find("camera_" + std::to_string(count) + "_prefix") != nullptr) {
+    throw InputError(source, yaml.require("camera_" + std::to_string(count) + "_prefix").line,
+                     "camera_" + std::to_string(count) + " is listed but rig_cameras is " + std::to_string(count));
+  }
+  if (const Entry* e = yaml.find("rig_avg_reprojection_error")) {
+    rig.avg_reprojection_error_px = yaml.real(*e, "rig_avg_reprojection_error");
+  }
+  validate_rig(rig, source);
+  return rig;
+}
+
+void write_rig_yaml(std::ostream& out, const Rig& rig) {
+  validate_rig(rig, "rig to write");
+  std::string text = "%YAML:1.0\n---\n" + stamp_line(std::nullopt);
+  text += "rig_cameras: " + std::to_string(rig.cameras.size()) + "\n";
+  for (std::size_t k = 0; k < rig.cameras.size(); ++k) {
+    const RigCamera& c = rig.cameras[k];
+    const std::string p = rig_key(k);
+    text += p + "prefix: \"" + c.prefix + "\"\n";
+    text += camera_entries(c.camera, p);
+    std::vector<double> r(9);
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) r[static_cast<std::size_t>(i * 3 + j)] = c.cam_from_rig_rotation(i, j);
+    }
+    text += matrix_entry(p + "cam_from_rig_rotation", 3, 3, r);
+    const Eigen::Vector3d& t = c.cam_from_rig_translation_mm;
+    text += matrix_entry(p + "cam_from_rig_translation_mm", 3, 1, {t.x(), t.y(), t.z()});
+    if (c.cam_from_rig_sigma) {
+      const auto& s = *c.cam_from_rig_sigma;
+      text += matrix_entry(p + "cam_from_rig_sigma", 6, 1, {s[0], s[1], s[2], s[3], s[4], s[5]});
+    }
+  }
+  if (rig.avg_reprojection_error_px) text += "rig_avg_reprojection_error: " + yaml_real(*rig.avg_reprojection_error_px) + "\n";
   out << text;
+}
+
+std::optional<RigMatch> match_rig_prefix(const std::vector<std::string>& prefixes, const std::string& image) {
+  const std::size_t slash = image.find_last_of('/');
+  const std::size_t base = slash == std::string::npos ? 0 : slash + 1;
+  std::optional<RigMatch> best;
+  std::size_t best_length = 0;
+  for (std::size_t k = 0; k < prefixes.size(); ++k) {
+    const std::string& p = prefixes[k];
+    if (p.empty() || p.size() <= best_length) continue;
+    if (image.compare(0, p.size(), p) == 0) {
+      best = RigMatch{k, image.substr(p.size())};
+      best_length = p.size();
+    } else if (p.find('/') == std::string::npos && image.compare(base, p.size(), p) == 0) {
+      best = RigMatch{k, image.substr(0, base) + image.substr(base + p.size())};
+      best_length = p.size();
+    }
+  }
+  return best;
 }
 
 }  // namespace photomill

@@ -43,6 +43,42 @@ struct CameraYamlLimits {
 Camera read_camera_yaml(std::istream& in, const std::string& source, CameraYamlLimits limits = {});
 void write_camera_yaml(std::ostream& out, const Camera& camera);
 
+// A rig: cameras fixed to one another (a stereo pair, a multi-camera head), each with the image
+// name prefix of the photos it took and its pose in the rig's frame. Photos whose names differ
+// only in the prefix were taken at once (one "frame", as COLMAP's rig configuration has it).
+struct RigCamera {
+  std::string prefix;
+  Camera camera;
+  Eigen::Matrix3d cam_from_rig_rotation = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d cam_from_rig_translation_mm = Eigen::Vector3d::Zero();
+  // One standard deviation of the pose: rotation about the camera's x, y, z (degrees), then
+  // translation (mm), from the rig calibration's covariance; absent for a given (fixed) pose.
+  std::optional<Eigen::Matrix<double, 6, 1>> cam_from_rig_sigma;
+  bool operator==(const RigCamera&) const = default;
+};
+
+struct Rig {
+  std::vector<RigCamera> cameras;
+  std::optional<double> avg_reprojection_error_px;  // RMS over every camera, from the calibration
+  bool operator==(const Rig&) const = default;
+};
+
+// rig.yaml: OpenCV FileStorage YAML with flat keys (docs/formats.md). Throws InputError naming
+// `source` and the line on anything a camera file would be refused for, a missing camera, two
+// cameras with one prefix, a rotation that is not one.
+Rig read_rig_yaml(std::istream& in, const std::string& source, CameraYamlLimits limits = {});
+void write_rig_yaml(std::ostream& out, const Rig& rig);
+
+// Which prefix an image name starts with, and its frame key (the name without the prefix). A
+// prefix without '/' may also start the file name after the directories (frame key: the
+// directories + the rest of the file name). The longest matching prefix wins; nullopt if none does.
+struct RigMatch {
+  std::size_t camera = 0;
+  std::string frame;
+  bool operator==(const RigMatch&) const = default;
+};
+std::optional<RigMatch> match_rig_prefix(const std::vector<std::string>& prefixes, const std::string& image);
+
 // The fields of view a camera file may give (across the image's width for fx, its height for
 // fy): a focal length outside is a typo or junk, not a lens.
 inline constexpr double kMinFieldOfViewDeg = 0.1;

@@ -163,3 +163,115 @@ TEST(CameraYaml, OversizedInputIsRefusedBeforeParsing) {
 
 }  // namespace
 }  // namespace photomill
+
+// ---------------------------------------------------------------------------------------------
+// rig.yaml
+
+namespace photomill {
+namespace {
+
+Rig sample_rig() {
+  Rig rig;
+  RigCamera left;
+  left.prefix = "left";
+  left.camera = sample_camera();
+  RigCamera right;
+  right.prefix = "cams/right_";
+  right.camera = sample_camera();
+  right.camera.camera_matrix(0, 0) = 2410.5;
+  right.camera.distortion = {-0.2, 0.01, 0, 0};
+  right.camera.avg_reprojection_error_px.reset();
+  right.cam_from_rig_rotation = Eigen::AngleAxisd(0.01, Eigen::Vector3d(0.1, 0.6, -0.7).normalized()).toRotationMatrix();
+  right.cam_from_rig_translation_mm = {-83.6123456789, 1.04, 1.3 + 1.0 / 3};
+  right.cam_from_rig_sigma = Eigen::Matrix<double, 6, 1>();
+  *right.cam_from_rig_sigma << 0.01, 0.02, 0.003, 0.05, 0.06, 0.7;
+  rig.cameras = {left, right};
+  rig.avg_reprojection_error_px = 0.25;
+  return rig;
+}
+
+std::string good_rig() {
+  std::ostringstream s;
+  write_rig_yaml(s, sample_rig());
+  return s.str();
+}
+
+std::string rig_error(const std::string& text) {
+  std::istringstream in(text);
+  try {
+    read_rig_yaml(in, "rig.yaml");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(RigYaml, RoundTripsExactly) {
+  std::stringstream s;
+  write_rig_yaml(s, sample_rig());
+  EXPECT_EQ(read_rig_yaml(s, "rig.yaml"), sample_rig()) << s.str();
+}
+
+TEST(RigYaml, OpenCvReadsWhatWeWrite) {
+  test::TempDir dir;
+  const auto path = (dir.path() / "rig.yaml").string();
+  {
+    std::ofstream f(path);
+    write_rig_yaml(f, sample_rig());
+  }
+  cv::FileStorage fs(path, cv::FileStorage::READ);
+  ASSERT_TRUE(fs.isOpened());
+  EXPECT_EQ(static_cast<int>(fs["rig_cameras"]), 2);
+  EXPECT_EQ(static_cast<std::string>(fs["camera_1_prefix"]), "cams/right_");
+  cv::Mat r, t;
+  fs["camera_1_cam_from_rig_rotation"] >> r;
+  fs["camera_1_cam_from_rig_translation_mm"] >> t;
+  EXPECT_EQ(r.at<double>(1, 2), sample_rig().cameras[1].cam_from_rig_rotation(1, 2));
+  EXPECT_EQ(t.at<double>(0), -83.6123456789);
+}
+
+TEST(RigYaml, MatchesImagesByPrefix) {
+  const std::vector<std::string> prefixes{"left", "right", "cam1/", "cam10/"};
+  EXPECT_EQ(match_rig_prefix(prefixes, "left01.jpg"), (RigMatch{0, "01.jpg"}));
+  EXPECT_EQ(match_rig_prefix(prefixes, "/data/set/right01.jpg"), (RigMatch{1, "/data/set/01.jpg"}));
+  EXPECT_EQ(match_rig_prefix(prefixes, "cam1/0001.png"), (RigMatch{2, "0001.png"}));
+  EXPECT_EQ(match_rig_prefix(prefixes, "cam10/0001.png"), (RigMatch{3, "0001.png"}));  // the longer prefix
+  EXPECT_EQ(match_rig_prefix(prefixes, "x/cam1/0001.png"), std::nullopt);  // a prefix with '/' starts the name
+  EXPECT_EQ(match_rig_prefix(prefixes, "middle.jpg"), std::nullopt);
+}
+
+struct BadRig {
+  const char* name;
+  std::string text;
+  const char* message;
+};
+
+class RigMalformed : public ::testing::TestWithParam<BadRig> {};
+
+TEST_P(RigMalformed, IsRejected) {
+  const std::string e = rig_error(GetParam().text);
+  EXPECT_NE(e.find(GetParam().message), std::string::npos) << e;
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, RigMalformed,
+    ::testing::Values(
+        BadRig{"empty", "", "rig.yaml: empty input: expected an OpenCV rig YAML file"},
+        BadRig{"not_yaml", "this is not: [yaml", "rig.yaml:1: not an OpenCV rig YAML file"},
+        BadRig{"a_camera_file", good_yaml(), "rig.yaml: missing key 'rig_cameras'"},
+        BadRig{"no_cameras", with(good_rig(), "rig_cameras: 2", "rig_cameras: 0"), "rig.yaml:4: rig_cameras: 0; a rig has 1 to 64"},
+        BadRig{"missing_camera", with(good_rig(), "rig_cameras: 2", "rig_cameras: 3"), "missing key 'camera_2_prefix'"},
+        BadRig{"extra_camera", with(good_rig(), "rig_cameras: 2", "rig_cameras: 1"), "camera_1 is listed but rig_cameras is 1"},
+        BadRig{"same_prefix", with(good_rig(), "\"cams/right_\"", "\"left\""), "cameras 0 and 1 have the same image name prefix 'left'"},
+        BadRig{"empty_prefix", with(good_rig(), "\"cams/right_\"", "\"\""), "camera 1 has an empty image name prefix"},
+        BadRig{"quote_in_prefix", with(good_rig(), "\"cams/right_\"", "\"a\"b\""), "is not a plain double-quoted string"},
+        BadRig{"not_rotation", with(good_rig(), "camera_0_cam_from_rig_rotation: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 1.", "camera_0_cam_from_rig_rotation: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 2."), "camera 0's cam_from_rig_rotation is not a rotation matrix"},
+        BadRig{"nan_translation", with(good_rig(), "-83.6123456789", ".nan"), "camera 1's pose in the rig has a non-finite value"},
+        BadRig{"short_translation", with(good_rig(), "cam_from_rig_translation_mm: !!opencv-matrix\n   rows: 3", "cam_from_rig_translation_mm: !!opencv-matrix\n   rows: 2"), "data has 3 values; rows x cols = 2 x 1 needs 2"},
+        BadRig{"negative_sigma", with(good_rig(), "[ 0.01, 0.02", "[ -0.01, 0.02"), "camera 1's cam_from_rig_sigma must be 6 non-negative numbers"},
+        BadRig{"bad_camera", with(good_rig(), "camera_1_image_width: 2000", "camera_1_image_width: 0"), "rig.yaml (camera_1): image size 0x1500 is not plausible"},
+        BadRig{"missing_matrix", with(good_rig(), "camera_1_camera_matrix", "camera_1_camera_matrixx"), "missing key 'camera_1_camera_matrix'"}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+}  // namespace
+}  // namespace photomill

@@ -71,6 +71,10 @@ void camera_yaml(const std::string& d) {
   std::istringstream in(d);
   read_camera_yaml(in, "fuzz");
 }
+void rig_yaml(const std::string& d) {
+  std::istringstream in(d);
+  read_rig_yaml(in, "fuzz");
+}
 void features(const std::string& d) {
   std::istringstream in(d);
   read_features(in, "fuzz");
@@ -93,7 +97,7 @@ const std::vector<Target>& targets() {
   static const std::vector<Target> all{
       {"observations", observations}, {"control_points", control_points}, {"tracks", tracks},
       {"poses", poses},               {"scale_bars", scale_bars},         {"point_cloud", point_cloud},
-      {"surface", surface},           {"cl_data", cl_data},               {"camera_yaml", camera_yaml},
+      {"surface", surface},           {"cl_data", cl_data},               {"camera_yaml", camera_yaml}, {"rig_yaml", rig_yaml},
       {"features", features},         {"step", step},                     {"iges", iges},
       {"known_poses", known_poses},   {"json", json}, {"uncertainty_grid", uncertainty_grid},
   };
