@@ -895,6 +895,24 @@ void Pipeline::finish(Reconstruction& r) {
   const PointUncertainty u = point_uncertainty(scene_, setup_, o_.bundle, co);
   r.sigma_mm = u.sigma_mm;
   r.covariance_mm2 = u.covariance_mm2;
+  // A point whose covariance is not finite is not determined by the adjustment (its rays are
+  // parallel to rounding: two views left once an outlier is gone, at a vanishing angle). Its
+  // position is meaningless, so it leaves the result, counted and named in a warning (issue 23:
+  // on the Middlebury temple such a point made the PLY writer fail in some runs).
+  std::size_t undetermined = 0;
+  TrackId example = 0;
+  for (std::size_t t = 0; t < scene_.tracks.size(); ++t) {
+    if (!r.in_result[t] || scene_.tracks[t].at_control || std::isfinite(r.sigma_mm[t])) continue;
+    r.in_result[t] = 0;
+    ++rep.tracks_dropped["undetermined"];
+    if (undetermined++ == 0) example = scene_.tracks[t].id;
+  }
+  if (undetermined > 0) {
+    report_.warnings.push_back(std::to_string(undetermined) + " point(s) left out (track " + std::to_string(example) +
+                               (undetermined > 1 ? " and others" : "") +
+                               "): the adjustment does not determine them (their covariance is not finite: the rays "
+                               "left after outlier removal are parallel)");
+  }
   rep.sigma_method = to_string(u.method);
   rep.variance_factor = u.variance_factor;
   check_two_view(r, views);

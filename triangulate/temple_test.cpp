@@ -202,6 +202,47 @@ TEST(Temple, TrueCamerasHeldFixedGiveMorePointsThanColmapAtALowerError) {
   EXPECT_GE(fraction, 0.99);
 }
 
+// templeSR0001 and templeSR0011 have the same true pose in templeSR_par.txt. A track seen in both
+// and in templeSR0010 (the one guided matching made, 1000816) keeps two parallel rays once the
+// third observation is removed as an outlier: its covariance is infinite. That point made the PLY
+// writer refuse ("'scalar_sigma_mm' holds a value its type cannot store", exit 1) in some runs
+// with --refine-intrinsics all; it must leave the result with a warning instead. With these
+// (unguided) tracks the pipeline drops the added track before the covariance, for its angle, so
+// this case checks the outcome (exit 0, no non-finite value in the cloud), not which of the two
+// checks removed it; the run prints which.
+TEST(Temple, APointOnParallelRaysLeavesTheResultWithAWarning) {
+  const TempleRun& t = temple();
+  if (t.error.rfind("shared data", 0) == 0) GTEST_SKIP() << t.error;
+  ASSERT_EQ(t.error, "");
+  const fs::path d = t.d();
+  std::string tracks = photomill::test::read_file(d / "tracks.csv");
+  const auto stamp_end = tracks.find('\n');
+  if (tracks.rfind("#", 0) == 0) tracks.erase(0, stamp_end + 1);  // the row count changes
+  const std::string dir = kTemple.string() + "/";
+  tracks += "99999999," + dir + "templeSR0001.png,444.9950866699219,318.7215576171875\n";
+  tracks += "99999999," + dir + "templeSR0010.png,447.75691877244043,303.26630173609936\n";
+  tracks += "99999999," + dir + "templeSR0011.png,444.9812065140768,318.59972358297244\n";
+  {
+    std::ofstream f(d / "tracks_parallel.csv");
+    f << tracks;
+  }
+  const auto tri = run_tool("triangulate", {(d / "tracks_parallel.csv").string(), "-c", (d / "camera.yaml").string(),
+                                            "--known-poses", (d / "poses.csv").string(), "--refine-intrinsics", "all",
+                                            "-o", (d / "parallel.ply").string(), "--ply-encoding", "ascii"});
+  ASSERT_EQ(tri.exit_code, 0) << tri.err;
+  std::ifstream ply(d / "parallel.ply");
+  std::string line;
+  while (std::getline(ply, line) && line != "end_header") {
+  }
+  while (std::getline(ply, line)) {
+    EXPECT_EQ(line.find("nan"), std::string::npos) << line;
+    EXPECT_EQ(line.find("inf"), std::string::npos) << line;
+  }
+  // Left out as undetermined, or before that for its angle: either way named on stderr or absent.
+  const bool undetermined = tri.err.find("left out (track 99999999") != std::string::npos;
+  std::cout << "the parallel-ray track: " << (undetermined ? "left out as undetermined" : "dropped earlier") << "\n";
+}
+
 // No markers, no poses, the true K: at least 15 of the 16 views oriented, their centres within
 // 1 mm RMS of the truth after the similarity that best maps them onto it (Umeyama 1991; the
 // scale is arbitrary). COLMAP 3.8's mapper: 13 of 16 (2.5 mm with its intrinsics refined,
