@@ -4,7 +4,9 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <functional>
 #include <map>
+#include <set>
 #include <optional>
 #include <string_view>
 
@@ -147,18 +149,26 @@ public:
     return *v;
   }
 
-  // A string scalar: "double quoted" (no escapes) or plain.
+  // A string scalar: "double" or 'single' quoted (without quotes, backslashes inside) or plain.
   std::string text(const std::string& key) const {
     const Entry& e = require(key);
     scalar_only(e, key);
     std::string_view v = e.value;
-    if (!v.empty() && v.front() == '"') {
-      if (v.size() < 2 || v.back() != '"' || v.substr(1, v.size() - 2).find_first_of("\\\"") != std::string_view::npos) {
-        throw InputError(source_, e.line, "'" + key + "' is not a plain double-quoted string: " + std::string(v));
+    if (!v.empty() && (v.front() == '"' || v.front() == '\'')) {
+      if (v.size() < 2 || v.back() != v.front() ||
+          v.substr(1, v.size() - 2).find_first_of("\\\"'") != std::string_view::npos) {
+        throw InputError(source_, e.line, "'" + key + "' is not a plain quoted string: " + std::string(v));
       }
       v = v.substr(1, v.size() - 2);
     }
     return std::string(v);
+  }
+
+  // Every top-level key with its line.
+  std::vector<std::pair<std::string, std::size_t>> keys() const {
+    std::vector<std::pair<std::string, std::size_t>> out;
+    for (const auto& [k, e] : entries_) out.emplace_back(k, e.line);
+    return out;
   }
 
   struct Matrix {
@@ -459,7 +469,13 @@ constexpr double kRotationTolerance = 1e-5;
 
 std::string rig_key(std::size_t k) { return "camera_" + std::to_string(k) + "_"; }
 
-void validate_rig(const Rig& rig, const std::string& source) {
+// The line of camera k's key `suffix` ("prefix", "cam_from_rig_rotation", ...), 0 if unknown.
+using RigLine = std::function<std::size_t(std::size_t k, const std::string& suffix)>;
+
+// A translation or sigma beyond this (mm: 1000 km) is junk, not a rig.
+constexpr double kMaxRigValue = 1e9;
+
+void validate_rig(const Rig& rig, const std::string& source, const RigLine& line) {
   if (rig.cameras.empty() || rig.cameras.size() > static_cast<std::size_t>(kMaxRigCameras)) {
     throw InputError(source, 0, "a rig has 1 to " + std::to_string(kMaxRigCameras) + " cameras, not " +
                                     std::to_string(rig.cameras.size()));
@@ -468,31 +484,49 @@ void validate_rig(const Rig& rig, const std::string& source) {
   for (std::size_t k = 0; k < rig.cameras.size(); ++k) {
     const RigCamera& c = rig.cameras[k];
     const std::string who = "camera " + std::to_string(k);
-    if (c.prefix.empty()) throw InputError(source, 0, who + " has an empty image name prefix");
-    if (c.prefix.find_first_of("\"\\\n\r") != std::string::npos) {
-      throw InputError(source, 0, who + "'s prefix holds a quote, a backslash or a line end");
+    if (c.prefix.empty()) throw InputError(source, line(k, "prefix"), who + " has an empty image name prefix");
+    const bool control = std::any_of(c.prefix.begin(), c.prefix.end(), [](char ch) {
+      return static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f || ch == '"' || ch == '\\' || ch == '\'';
+    });
+    if (control || c.prefix.front() == ' ' || c.prefix.back() == ' ') {
+      throw InputError(source, line(k, "prefix"), who + "'s prefix holds a quote, a backslash, a control character "
+                                                        "or a leading or trailing space");
     }
     const auto [it, fresh] = prefixes.emplace(c.prefix, k);
     if (!fresh) {
-      throw InputError(source, 0, "cameras " + std::to_string(it->second) + " and " + std::to_string(k) +
-                                      " have the same image name prefix '" + c.prefix + "'");
+      throw InputError(source, line(k, "prefix"), "cameras " + std::to_string(it->second) + " and " +
+                                                      std::to_string(k) + " have the same image name prefix '" +
+                                                      c.prefix + "'");
     }
-    validate_camera(c.camera, source + " (" + who + ")");
+    validate_camera(c.camera, source + " (camera_" + std::to_string(k) + ")");
     const Eigen::Matrix3d& r = c.cam_from_rig_rotation;
-    if (!r.allFinite() || !c.cam_from_rig_translation_mm.allFinite()) {
-      throw InputError(source, 0, who + "'s pose in the rig has a non-finite value");
+    if (!r.allFinite() || !c.cam_from_rig_translation_mm.allFinite() ||
+        c.cam_from_rig_translation_mm.cwiseAbs().maxCoeff() > kMaxRigValue) {
+      throw InputError(source, line(k, "cam_from_rig_translation_mm"),
+                       who + "'s pose in the rig has a non-finite or implausible value");
     }
     if ((r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > kRotationTolerance ||
         !(r.determinant() > 0)) {
-      throw InputError(source, 0, who + "'s cam_from_rig_rotation is not a rotation matrix (orthonormal, det +1)");
+      throw InputError(source, line(k, "cam_from_rig_rotation"),
+                       who + "'s cam_from_rig_rotation is not a rotation matrix (orthonormal, det +1)");
     }
-    if (c.cam_from_rig_sigma && !(c.cam_from_rig_sigma->allFinite() && c.cam_from_rig_sigma->minCoeff() >= 0)) {
-      throw InputError(source, 0, who + "'s cam_from_rig_sigma must be 6 non-negative numbers");
+    if (c.cam_from_rig_sigma && !(c.cam_from_rig_sigma->allFinite() && c.cam_from_rig_sigma->minCoeff() >= 0 &&
+                                  c.cam_from_rig_sigma->maxCoeff() <= kMaxRigValue)) {
+      throw InputError(source, line(k, "cam_from_rig_sigma"),
+                       who + "'s cam_from_rig_sigma must be 6 non-negative numbers");
     }
   }
   if (rig.avg_reprojection_error_px && !(std::isfinite(*rig.avg_reprojection_error_px) && *rig.avg_reprojection_error_px >= 0)) {
-    throw InputError(source, 0, "rig_avg_reprojection_error must be a non-negative number");
+    throw InputError(source, line(0, "rig_avg_reprojection_error"), "rig_avg_reprojection_error must be a non-negative number");
   }
+}
+
+// The keys a rig file may hold after "camera_K_" (K = 0 ... rig_cameras - 1, written plainly).
+const std::set<std::string>& rig_camera_suffixes() {
+  static const std::set<std::string> s{"prefix", "image_width", "image_height", "camera_matrix",
+                                       "distortion_coefficients", "avg_reprojection_error", "cam_from_rig_rotation",
+                                       "cam_from_rig_translation_mm", "cam_from_rig_sigma"};
+  return s;
 }
 
 }  // namespace
@@ -504,6 +538,34 @@ Rig read_rig_yaml(std::istream& in, const std::string& source, CameraYamlLimits 
   if (count < 1 || count > kMaxRigCameras) {
     throw InputError(source, yaml.require("rig_cameras").line,
                      "rig_cameras: " + std::to_string(count) + "; a rig has 1 to " + std::to_string(kMaxRigCameras));
+  }
+  // Every key "camera_..." must name one of the rig's cameras and one of its fields, and every
+  // "rig_..." key one of the rig's: a misspelt key would otherwise drop what it holds unseen.
+  for (const auto& [key, line] : yaml.keys()) {
+    if (key.rfind("rig_", 0) == 0) {
+      if (key != "rig_cameras" && key != "rig_avg_reprojection_error") {
+        throw InputError(source, line, "unknown key '" + key + "' (a rig file has rig_cameras, rig_avg_reprojection_error "
+                                       "and camera_K_... keys)");
+      }
+      continue;
+    }
+    if (key.rfind("camera_", 0) != 0) continue;
+    const std::size_t digits_end = key.find('_', 7);
+    const std::string number = key.substr(7, digits_end == std::string::npos ? std::string::npos : digits_end - 7);
+    const bool canonical = !number.empty() && number.size() <= 3 &&
+                           number.find_first_not_of("0123456789") == std::string::npos &&
+                           (number == "0" || number.front() != '0');
+    if (!canonical || digits_end == std::string::npos) {
+      throw InputError(source, line, "unknown key '" + key + "' (expected camera_K_FIELD, K = 0 ... " +
+                                         std::to_string(count - 1) + ")");
+    }
+    if (std::stoi(number) >= count) {
+      throw InputError(source, line, "'" + key + "' is for camera " + number + " but rig_cameras is " +
+                                         std::to_string(count));
+    }
+    if (!rig_camera_suffixes().count(key.substr(digits_end + 1))) {
+      throw InputError(source, line, "unknown key '" + key + "'");
+    }
   }
   Rig rig;
   for (std::size_t k = 0; k < static_cast<std::size_t>(count); ++k) {
@@ -533,19 +595,18 @@ Rig read_rig_yaml(std::istream& in, const std::string& source, CameraYamlLimits 
     }
     rig.cameras.push_back(std::move(c));
   }
-  if (yaml.find("camera_" + std::to_string(count) + "_prefix") != nullptr) {
-    throw InputError(source, yaml.require("camera_" + std::to_string(count) + "_prefix").line,
-                     "camera_" + std::to_string(count) + " is listed but rig_cameras is " + std::to_string(count));
-  }
   if (const Entry* e = yaml.find("rig_avg_reprojection_error")) {
     rig.avg_reprojection_error_px = yaml.real(*e, "rig_avg_reprojection_error");
   }
-  validate_rig(rig, source);
+  validate_rig(rig, source, [&](std::size_t k, const std::string& suffix) -> std::size_t {
+    const Entry* e = yaml.find(suffix.rfind("rig_", 0) == 0 ? suffix : rig_key(k) + suffix);
+    return e ? e->line : 0;
+  });
   return rig;
 }
 
 void write_rig_yaml(std::ostream& out, const Rig& rig) {
-  validate_rig(rig, "rig to write");
+  validate_rig(rig, "rig to write", [](std::size_t, const std::string&) -> std::size_t { return 0; });
   std::string text = "%YAML:1.0\n---\n" + stamp_line(std::nullopt);
   text += "rig_cameras: " + std::to_string(rig.cameras.size()) + "\n";
   for (std::size_t k = 0; k < rig.cameras.size(); ++k) {
@@ -577,13 +638,16 @@ std::optional<RigMatch> match_rig_prefix(const std::vector<std::string>& prefixe
   for (std::size_t k = 0; k < prefixes.size(); ++k) {
     const std::string& p = prefixes[k];
     if (p.empty() || p.size() <= best_length) continue;
-    if (image.compare(0, p.size(), p) == 0) {
+    if (p.find('/') != std::string::npos) {
+      // A prefix with a directory starts the whole name.
+      if (image.compare(0, p.size(), p) != 0) continue;
       best = RigMatch{k, image.substr(p.size())};
-      best_length = p.size();
-    } else if (p.find('/') == std::string::npos && image.compare(base, p.size(), p) == 0) {
+    } else {
+      // Any other starts the file name, whatever directories lead to it.
+      if (image.compare(base, p.size(), p) != 0) continue;
       best = RigMatch{k, image.substr(0, base) + image.substr(base + p.size())};
-      best_length = p.size();
     }
+    best_length = p.size();
   }
   return best;
 }

@@ -70,8 +70,9 @@ Rig read_rig_yaml(std::istream& in, const std::string& source, CameraYamlLimits 
 void write_rig_yaml(std::ostream& out, const Rig& rig);
 
 // Which prefix an image name starts with, and its frame key (the name without the prefix). A
-// prefix without '/' may also start the file name after the directories (frame key: the
-// directories + the rest of the file name). The longest matching prefix wins; nullopt if none does.
+// prefix with '/' starts the whole name; one without starts the file name after the directories
+// (frame key: the directories + the rest of the file name). The longest matching prefix wins;
+// nullopt if none matches.
 struct RigMatch {
   std::size_t camera = 0;
   std::string frame;

@@ -238,6 +238,10 @@ TEST(RigYaml, MatchesImagesByPrefix) {
   EXPECT_EQ(match_rig_prefix(prefixes, "cam10/0001.png"), (RigMatch{3, "0001.png"}));  // the longer prefix
   EXPECT_EQ(match_rig_prefix(prefixes, "x/cam1/0001.png"), std::nullopt);  // a prefix with '/' starts the name
   EXPECT_EQ(match_rig_prefix(prefixes, "middle.jpg"), std::nullopt);
+  // A prefix without '/' starts the file name only: both photos of one frame pair up.
+  EXPECT_EQ(match_rig_prefix(prefixes, "leftovers/left01.jpg"), (RigMatch{0, "leftovers/01.jpg"}));
+  EXPECT_EQ(match_rig_prefix(prefixes, "leftovers/right01.jpg"), (RigMatch{1, "leftovers/01.jpg"}));
+  EXPECT_EQ(match_rig_prefix(prefixes, "leftovers/x.jpg"), std::nullopt);
 }
 
 struct BadRig {
@@ -261,16 +265,23 @@ INSTANTIATE_TEST_SUITE_P(
         BadRig{"a_camera_file", good_yaml(), "rig.yaml: missing key 'rig_cameras'"},
         BadRig{"no_cameras", with(good_rig(), "rig_cameras: 2", "rig_cameras: 0"), "rig.yaml:4: rig_cameras: 0; a rig has 1 to 64"},
         BadRig{"missing_camera", with(good_rig(), "rig_cameras: 2", "rig_cameras: 3"), "missing key 'camera_2_prefix'"},
-        BadRig{"extra_camera", with(good_rig(), "rig_cameras: 2", "rig_cameras: 1"), "camera_1 is listed but rig_cameras is 1"},
-        BadRig{"same_prefix", with(good_rig(), "\"cams/right_\"", "\"left\""), "cameras 0 and 1 have the same image name prefix 'left'"},
+        BadRig{"extra_camera", with(good_rig(), "rig_cameras: 2", "rig_cameras: 1"), "is for camera 1 but rig_cameras is 1"},
+        BadRig{"stray_camera_key", good_rig() + "camera_3_image_width: 640\n", "'camera_3_image_width' is for camera 3 but rig_cameras is 2"},
+        BadRig{"misspelt_sigma", with(good_rig(), "camera_1_cam_from_rig_sigma:", "camera_1_cam_from_rig_sigmas:"), "unknown key 'camera_1_cam_from_rig_sigmas'"},
+        BadRig{"padded_index", with(good_rig(), "camera_1_prefix", "camera_01_prefix"), "unknown key 'camera_01_prefix'"},
+        BadRig{"unknown_rig_key", good_rig() + "rig_baseline: 3\n", "unknown key 'rig_baseline'"},
+        BadRig{"space_prefix", with(good_rig(), "\"cams/right_\"", "\" \""), "camera 1's prefix holds a quote, a backslash, a control character or a leading or trailing space"},
+        BadRig{"huge_translation", with(good_rig(), "-83.6123456789", "1e300"), "camera 1's pose in the rig has a non-finite or implausible value"},
+        BadRig{"same_prefix", with(good_rig(), "\"cams/right_\"", "\"left\""), "rig.yaml:29: cameras 0 and 1 have the same image name prefix 'left'"},
         BadRig{"empty_prefix", with(good_rig(), "\"cams/right_\"", "\"\""), "camera 1 has an empty image name prefix"},
-        BadRig{"quote_in_prefix", with(good_rig(), "\"cams/right_\"", "\"a\"b\""), "is not a plain double-quoted string"},
+        BadRig{"quote_in_prefix", with(good_rig(), "\"cams/right_\"", "\"a\"b\""), "is not a plain quoted string"},
         BadRig{"not_rotation", with(good_rig(), "camera_0_cam_from_rig_rotation: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 1.", "camera_0_cam_from_rig_rotation: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 2."), "camera 0's cam_from_rig_rotation is not a rotation matrix"},
-        BadRig{"nan_translation", with(good_rig(), "-83.6123456789", ".nan"), "camera 1's pose in the rig has a non-finite value"},
+        BadRig{"nan_translation", with(good_rig(), "-83.6123456789", ".nan"), "camera 1's pose in the rig has a non-finite or implausible value"},
         BadRig{"short_translation", with(good_rig(), "cam_from_rig_translation_mm: !!opencv-matrix\n   rows: 3", "cam_from_rig_translation_mm: !!opencv-matrix\n   rows: 2"), "data has 3 values; rows x cols = 2 x 1 needs 2"},
         BadRig{"negative_sigma", with(good_rig(), "[ 0.01, 0.02", "[ -0.01, 0.02"), "camera 1's cam_from_rig_sigma must be 6 non-negative numbers"},
         BadRig{"bad_camera", with(good_rig(), "camera_1_image_width: 2000", "camera_1_image_width: 0"), "rig.yaml (camera_1): image size 0x1500 is not plausible"},
-        BadRig{"missing_matrix", with(good_rig(), "camera_1_camera_matrix", "camera_1_camera_matrixx"), "missing key 'camera_1_camera_matrix'"}),
+        BadRig{"misspelt_matrix", with(good_rig(), "camera_1_camera_matrix", "camera_1_camera_matrixx"), "rig.yaml:32: unknown key 'camera_1_camera_matrixx'"},
+        BadRig{"missing_matrix", with(good_rig(), "camera_1_camera_matrix", "other_camera_matrix"), "missing key 'camera_1_camera_matrix'"}),
     [](const auto& info) { return std::string(info.param.name); });
 
 }  // namespace
