@@ -356,6 +356,28 @@ TEST(Pipe, DetectIntoCalibWritesARig) {
   for (const char* key : {"\"baseline_mm\"", "\"baseline_sigma_mm\"", "\"sigma_rotation_deg\"", "\"frames\""}) {
     EXPECT_NE(report.find(key), std::string::npos) << key;
   }
+  // --rig-fix-intrinsics keeps each camera's own calibration (here the left camera's, made
+  // alone from the same photos); by default the rig adjustment moves it.
+  std::string left_only;
+  {
+    std::istringstream in(d.out);
+    for (std::string line; std::getline(in, line);) {
+      if (line.rfind("image,", 0) == 0 || line.find("/left") != std::string::npos) left_only += line + "\n";
+    }
+  }
+  const auto cam_path = dir.path() / "left.yaml";
+  ASSERT_EQ(test::run_tool("calib", {"--chessboard", "9x6", "-q", "-o", cam_path.string()}, left_only).exit_code, 0);
+  std::ifstream cam_in(cam_path);
+  const Camera left = read_camera_yaml(cam_in, cam_path.string());
+  const auto fixed_path = dir.path() / "fixed.yaml";
+  const auto f = test::run_tool("calib", {"--chessboard", "9x6", "--rig", "left", "--rig", "right", "--rig-fix-intrinsics",
+                                          "-q", "-o", fixed_path.string()},
+                                d.out);
+  ASSERT_EQ(f.exit_code, 0) << f.err;
+  std::ifstream fixed_in(fixed_path);
+  const Rig fixed = read_rig_yaml(fixed_in, fixed_path.string());
+  EXPECT_EQ(fixed.cameras[0].camera.camera_matrix, left.camera_matrix);
+  EXPECT_NE(rig.cameras[0].camera.camera_matrix, left.camera_matrix);
 }
 
 // A board given to the DLT: a GeometryError explains why, exit 1, and no camera file is left.

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <sstream>
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 

@@ -108,7 +108,7 @@ bool in_adjustment(const Scene& scene, std::size_t track, std::size_t active) {
 
 double reprojection_error_px(const Scene& scene, std::size_t observation) {
   const ObservationRef& ob = scene.observations[observation];
-  const auto uv = project_point(scene.camera, scene.images[ob.image].cam_from_world.data(),
+  const auto uv = project_point(scene.camera_of(ob.image), scene.images[ob.image].cam_from_world.data(),
                                 scene.tracks[ob.track].xyz_mm);
   return uv ? (*uv - ob.uv_px).norm() : std::numeric_limits<double>::infinity();
 }
@@ -145,8 +145,9 @@ std::shared_ptr<ceres::ParameterBlockOrdering> build_problem(Scene& scene, const
                                                              BundleSummary& out) {
   const bool refine_intrinsics = options.refine_intrinsics != IntrinsicsRefinement::None;
   // The refined intrinsics' block: the first block_size of the camera's (the rest held fixed).
-  double* intrinsics = scene.camera.params.data();
-  const int block_size = intrinsics_block_size(options.refine_intrinsics, scene.camera.distortion_count);
+  // Self-calibration adjusts one camera (reconstruct refuses it with several).
+  double* intrinsics = scene.cameras.front().params.data();
+  const int block_size = intrinsics_block_size(options.refine_intrinsics, scene.cameras.front().distortion_count);
 
   const AdjustmentLayout layout = adjustment_layout(scene, setup, options.threads);
   const auto& active = layout.active;
@@ -164,8 +165,8 @@ std::shared_ptr<ceres::ParameterBlockOrdering> build_problem(Scene& scene, const
       const ObservationRef& ob = scene.observations[o];
       double* pose = scene.images[ob.image].cam_from_world.data();
       ceres::CostFunction* cost =
-          refine_intrinsics ? reprojection_error_with_intrinsics(block_size, shape_of(scene.camera), ob.uv_px, setup.sigma_of(ob))
-                            : ReprojectionError::create(&scene.camera, ob.uv_px, setup.sigma_of(ob));
+          refine_intrinsics ? reprojection_error_with_intrinsics(block_size, shape_of(scene.cameras.front()), ob.uv_px, setup.sigma_of(ob))
+                            : ReprojectionError::create(&scene.camera_of(ob.image), ob.uv_px, setup.sigma_of(ob));
       // The loss acts on whitened residuals: its scale in pixels divided by the same sigma.
       ceres::LossFunction* loss = make_loss(options.loss, options.loss_scale_px / setup.sigma_of(ob));
       if (refine_intrinsics) {
@@ -209,7 +210,7 @@ std::shared_ptr<ceres::ParameterBlockOrdering> build_problem(Scene& scene, const
   if (refine_intrinsics && problem.HasParameterBlock(intrinsics)) {
     ordering->AddElementToGroup(intrinsics, 1);
     std::vector<int> constant;
-    for (int k : constant_intrinsics(options.refine_intrinsics, scene.camera.distortion_count)) {
+    for (int k : constant_intrinsics(options.refine_intrinsics, scene.cameras.front().distortion_count)) {
       if (k < block_size) constant.push_back(k);
     }
     if (!constant.empty()) problem.SetManifold(intrinsics, new ceres::SubsetManifold(block_size, constant));

@@ -2,12 +2,15 @@
 #include "triangulate/cli.hpp"
 
 #include <algorithm>
+#include <iterator>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 
 #include <CLI/CLI.hpp>
 
+#include "formats/camera.hpp"
 #include "formats/camera_bounds.hpp"
 #include "formats/error.hpp"
 #include "formats/option_checks.hpp"
@@ -57,7 +60,16 @@ void add_options(CLI::App& app, Cli& c) {
   ReconstructOptions& o = c.options;
   app.add_option("tracks", c.tracks, "Tracks CSV (track_id,image,u_px,v_px); '-' for stdin")->capture_default_str();
   // Required, but checked in to_options() so that an unknown option is named first.
-  app.add_option("-c,--camera", c.camera, "Camera intrinsics (camera.yaml), required");
+  auto* cam = app.add_option("-c,--camera", c.camera, "Camera intrinsics (camera.yaml) of every photo; or --camera-for, or --rig");
+  auto* cam_for = app.add_option("--camera-for", c.camera_for,
+                                 "PREFIX=FILE: the camera.yaml of the photos whose names (or file names, for a PREFIX "
+                                 "without '/') start with PREFIX; repeatable, one per camera")
+                      ->allow_extra_args(false)->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  auto* rig = app.add_option("--rig", c.rig,
+                             "rig.yaml (calib --rig): each photo's camera by its prefix; the photos of one frame (names "
+                             "alike but for the prefix) are placed by the rig's relative poses, the rig's frame as the world");
+  cam->excludes(cam_for)->excludes(rig);
+  cam_for->excludes(rig);
   app.add_option("--control-points", c.control_points,
                  "Control points CSV (point_id,x_mm,y_mm,z_mm[,sigma_mm]): the datum; held fixed, or weighted by sigma_mm");
   app.add_option("-o,--output", c.output, "Point cloud PLY ('-': stdout)")->capture_default_str();
@@ -190,7 +202,13 @@ void add_options(CLI::App& app, Cli& c) {
 }
 
 ReconstructOptions to_options(const Cli& c) {
-  if (c.camera.empty()) throw UsageError("--camera is required: the camera.yaml of the photos");
+  if (c.camera.empty() && c.camera_for.empty() && c.rig.empty()) {
+    throw UsageError("--camera is required: the camera.yaml of the photos (or --camera-for PREFIX=FILE per camera, or "
+                     "--rig rig.yaml)");
+  }
+  if (!c.rig.empty() && !c.known_poses.empty()) {
+    throw UsageError("--rig places the photos by the rig's relative poses; --known-poses would replace them: give one");
+  }
   ReconstructOptions o = c.options;
   o.bundle.loss = kLoss.at(c.loss);
   o.bundle.solver = kSolver.at(c.solver);
@@ -215,7 +233,7 @@ ReconstructOptions to_options(const Cli& c) {
   if (c.output.empty()) ++to_stdout;
   if (to_stdout > 1) throw UsageError("only one output can go to stdout ('-')");
   int from_stdin = 0;
-  for (const std::string* p : {&c.tracks, &c.camera, &c.control_points, &c.scale_bars, &c.known_poses}) {
+  for (const std::string* p : {&c.tracks, &c.camera, &c.rig, &c.control_points, &c.scale_bars, &c.known_poses}) {
     from_stdin += *p == "-" ? 1 : 0;
   }
   if (from_stdin > 1) {
@@ -226,11 +244,76 @@ ReconstructOptions to_options(const Cli& c) {
 
 ReconstructInput read_input(const Cli& c) {
   ReconstructInput in;
-  in.camera_source = tool::source_name(c.camera);
-  in.camera = read_camera_yaml(*tool::open_input(c.camera), in.camera_source);
   in.tracks_source = tool::source_name(c.tracks);
+  std::optional<Rig> rig;
+  if (!c.camera.empty()) {
+    in.camera_source = tool::source_name(c.camera);
+    in.camera = read_camera_yaml(*tool::open_input(c.camera), in.camera_source);
+  } else if (!c.rig.empty()) {
+    rig = read_rig_yaml(*tool::open_input(c.rig), tool::source_name(c.rig));
+    for (std::size_t k = 0; k < rig->cameras.size(); ++k) {
+      in.cameras.push_back({rig->cameras[k].prefix, rig->cameras[k].camera,
+                            tool::source_name(c.rig) + " (camera_" + std::to_string(k) + ")"});
+    }
+  } else {
+    std::set<std::string> seen;
+    for (const std::string& arg : c.camera_for) {
+      const auto eq = arg.find('=');
+      if (eq == std::string::npos || eq == 0 || eq + 1 == arg.size()) {
+        throw UsageError("--camera-for '" + arg + "': expected PREFIX=FILE (e.g. left=left.yaml)");
+      }
+      const std::string prefix = arg.substr(0, eq), file = arg.substr(eq + 1);
+      if (!seen.insert(prefix).second) throw UsageError("--camera-for: prefix '" + prefix + "' given twice");
+      in.cameras.push_back({prefix, read_camera_yaml(*tool::open_input(file), tool::source_name(file)),
+                            tool::source_name(file)});
+    }
+  }
   in.tracks = read_tracks(*tool::open_input(c.tracks), in.tracks_source);
-  check_inside_camera_image(in.tracks, in.tracks_source, in.camera, in.camera_source);
+  if (in.cameras.empty()) {
+    check_inside_camera_image(in.tracks, in.tracks_source, in.camera, in.camera_source);
+  } else {
+    std::vector<std::string> prefixes;
+    for (const auto& pc : in.cameras) prefixes.push_back(pc.prefix);
+    std::vector<std::vector<TrackObservation>> by_camera(in.cameras.size());
+    for (const auto& t : in.tracks) {
+      const auto m = match_rig_prefix(prefixes, t.image);
+      if (!m) {
+        std::string list;
+        for (const auto& p : prefixes) list += (list.empty() ? "'" : ", '") + p + "'";
+        throw InputError(in.tracks_source, 0, "image '" + t.image + "' starts with none of the cameras' prefixes (" +
+                                                  list + "): give its camera");
+      }
+      by_camera[m->camera].push_back(t);
+    }
+    for (std::size_t k = 0; k < in.cameras.size(); ++k) {
+      check_inside_camera_image(by_camera[k], in.tracks_source, in.cameras[k].camera, in.cameras[k].source);
+    }
+    if (rig) {
+      // The photos of one frame, placed by the rig: the rig's frame is the world.
+      std::set<std::string> frames;
+      std::map<std::string, std::size_t> image_camera;
+      for (const auto& t : in.tracks) {
+        const auto m = match_rig_prefix(prefixes, t.image);
+        frames.insert(m->frame);
+        image_camera[t.image] = m->camera;
+      }
+      if (frames.size() > 1) {
+        throw InputError(in.tracks_source, 0,
+                         "the photos are " + std::to_string(frames.size()) + " frames of the rig ('" + *frames.begin() +
+                             "', '" + *std::next(frames.begin()) + "'...): triangulate places one frame by the rig so "
+                             "far; run it per frame, or give the cameras alone with --camera-for PREFIX=FILE");
+      }
+      in.known_poses_source = tool::source_name(c.rig);
+      for (const auto& [image, k] : image_camera) {
+        Pose p;
+        p.image = image;
+        p.cam_from_world_rotation = Eigen::Quaterniond(rig->cameras[k].cam_from_rig_rotation).normalized();
+        p.cam_from_world_translation_mm = rig->cameras[k].cam_from_rig_translation_mm;
+        in.known_poses.push_back(p);
+        in.known_pose_lines.push_back(0);
+      }
+    }
+  }
   if (!c.control_points.empty()) {
     in.control_points = read_control_points(*tool::open_input(c.control_points), tool::source_name(c.control_points));
     // A control file none of whose points was measured is the wrong file (docs/errors.md).

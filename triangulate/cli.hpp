@@ -14,6 +14,8 @@ namespace photomill::triangulate {
 struct Cli {
   std::string tracks = "-";
   std::string camera;
+  std::vector<std::string> camera_for;  // PREFIX=FILE, one per camera
+  std::string rig;                      // rig.yaml
   std::string control_points;
   std::string scale_bars;
   std::string known_poses;        // photomill's poses CSV or COLMAP's images.txt

@@ -124,6 +124,41 @@ const std::vector<ErrorCase> kErrors = {
        return std::vector<std::string>{f.path("one.csv"), "-c", f.path("camera.yaml"), "--control-points", f.path("control.csv"), "-o", f.path("cloud.ply"), "--poses", f.path("poses.csv")};
      },
      1, "one image"},
+    // Several cameras (issue 23).
+    {"camera_for_syntax",
+     [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "--camera-for", f.path("camera.yaml"), "--control-points", f.path("control.csv"), "-o", f.path("cloud.ply")}; },
+     2, "expected PREFIX=FILE"},
+    {"camera_and_camera_for",
+     [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "-c", f.path("camera.yaml"), "--camera-for", "view_=" + f.path("camera.yaml"), "-o", f.path("cloud.ply")}; },
+     2, "excludes"},
+    {"image_of_no_camera",
+     [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "--camera-for", "view_1=" + f.path("camera.yaml"), "--control-points", f.path("control.csv"), "-o", f.path("cloud.ply")}; },
+     1, "' starts with none of the cameras' prefixes ('view_1'): give its camera"},
+    {"several_cameras_self_calibrated",
+     [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "--camera-for", "view_0=" + f.path("camera.yaml"), "--camera-for", "view_1=" + f.path("camera.yaml"), "--control-points", f.path("control.csv"), "--refine-intrinsics", "all", "-o", f.path("cloud.ply")}; },
+     2, "--refine-intrinsics adjusts one camera"},
+    {"rig_and_known_poses",
+     [](SceneFiles& f) {
+       f.write("rig.yaml", [&](std::ostream& s) {
+         Rig rig;
+         rig.cameras.push_back({"view_0", f.truth().camera, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), {}});
+         rig.cameras.push_back({"view_1", f.truth().camera, Eigen::Matrix3d::Identity(), Eigen::Vector3d(-80, 0, 0), {}});
+         write_rig_yaml(s, rig);
+       });
+       return std::vector<std::string>{f.path("tracks.csv"), "--rig", f.path("rig.yaml"), "--known-poses", f.path("tracks.csv"), "-o", f.path("cloud.ply")};
+     },
+     2, "--rig places the photos by the rig's relative poses; --known-poses would replace them"},
+    {"rig_of_several_frames",
+     [](SceneFiles& f) {
+       f.write("rig.yaml", [&](std::ostream& s) {
+         Rig rig;
+         rig.cameras.push_back({"view_0", f.truth().camera, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), {}});
+         rig.cameras.push_back({"view_1", f.truth().camera, Eigen::Matrix3d::Identity(), Eigen::Vector3d(-80, 0, 0), {}});
+         write_rig_yaml(s, rig);
+       });
+       return std::vector<std::string>{f.path("tracks.csv"), "--rig", f.path("rig.yaml"), "-o", f.path("cloud.ply")};
+     },
+     1, "frames of the rig ('00.png', '01.png'...): triangulate places one frame by the rig so far; run it per frame"},
 };
 
 INSTANTIATE_TEST_SUITE_P(Triangulate, TriangulateCliError, ::testing::ValuesIn(kErrors));

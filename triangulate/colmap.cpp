@@ -93,14 +93,17 @@ ColmapCamera to_colmap_camera(const Camera& camera, const std::string& source) {
 void check_colmap_camera(const Camera& camera, const std::string& source) { (void)to_colmap_camera(camera, source); }
 
 void write_colmap_cameras(std::ostream& out, const Reconstruction& r) {
-  const ColmapCamera c = to_colmap_camera(r.camera, "camera");
+  const std::vector<Camera> cameras = r.cameras.empty() ? std::vector<Camera>{r.camera} : r.cameras;
   out << "# Camera list with one line of data per camera:\n"
       << "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
-      << "# Number of cameras: 1\n"
+      << "# Number of cameras: " << cameras.size() << "\n"
       << "# photomill triangulate: principal point in COLMAP's convention (OpenCV's + 0.5 px)\n";
-  out << "1 " << c.model << " " << r.camera.image_width_px << " " << r.camera.image_height_px;
-  for (double p : c.params) out << " " << num(p);
-  out << "\n";
+  for (std::size_t k = 0; k < cameras.size(); ++k) {
+    const ColmapCamera c = to_colmap_camera(cameras[k], "camera " + std::to_string(k));
+    out << k + 1 << " " << c.model << " " << cameras[k].image_width_px << " " << cameras[k].image_height_px;
+    for (double p : c.params) out << " " << num(p);
+    out << "\n";
+  }
 }
 
 void write_colmap_images(std::ostream& out, const Reconstruction& r) {
@@ -124,7 +127,8 @@ void write_colmap_images(std::ostream& out, const Reconstruction& r) {
     const auto& q = p.cam_from_world_rotation;
     const auto& t = p.cam_from_world_translation_mm;
     out << ids.image_id[i] << " " << num(q.w()) << " " << num(q.x()) << " " << num(q.y()) << " " << num(q.z()) << " "
-        << num(t.x()) << " " << num(t.y()) << " " << num(t.z()) << " 1 " << s.images[i].name << "\n";
+        << num(t.x()) << " " << num(t.y()) << " " << num(t.z()) << " " << s.images[i].camera + 1 << " "
+        << s.images[i].name << "\n";
     bool first = true;
     for (std::size_t o : s.images[i].observations) {
       const ObservationRef& ob = s.observations[o];

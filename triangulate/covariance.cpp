@@ -30,10 +30,10 @@ bool observation_jacobian(const Scene& scene, const ObservationRef& ob, double i
   for (int i = 0; i < 6; ++i) p[i] = Jet(pose[static_cast<std::size_t>(i)], i);
   for (int i = 0; i < 3; ++i) x[i] = Jet(X[i], 6 + i);
   for (int i = 0; i < kIntrinsicCount; ++i) {
-    const double value = scene.camera.params[static_cast<std::size_t>(i)];
+    const double value = scene.camera_of(ob.image).params[static_cast<std::size_t>(i)];
     k[i] = N == kFullJetSize ? Jet(value, 9 + i) : Jet(value);
   }
-  if (!project(shape_of(scene.camera), k, p, x, uv)) return false;
+  if (!project(shape_of(scene.camera_of(ob.image)), k, p, x, uv)) return false;
   J.resize(2, N);
   for (int i = 0; i < 2; ++i) J.row(i) = uv[i].v.transpose() * inv_sigma;
   r << (uv[0].a - ob.uv_px.x()) * inv_sigma, (uv[1].a - ob.uv_px.y()) * inv_sigma;
@@ -70,7 +70,7 @@ Columns assign_columns(const Scene& scene, const BundleSetup& setup, const Bundl
   }
   if (bundle.refine_intrinsics != IntrinsicsRefinement::None) {
     std::vector<char> constant(kIntrinsicCount, 0);
-    for (int k : constant_intrinsics(bundle.refine_intrinsics, scene.camera.distortion_count)) {
+    for (int k : constant_intrinsics(bundle.refine_intrinsics, scene.cameras.front().distortion_count)) {
       constant[static_cast<std::size_t>(k)] = 1;
     }
     for (int k = 0; k < kIntrinsicCount; ++k) {

@@ -19,7 +19,10 @@ int main(int argc, char** argv) {
       [&] {
         const triangulate::ReconstructOptions options = triangulate::to_options(cli);
         const triangulate::ReconstructInput input = triangulate::read_input(cli);
-        if (!cli.colmap.empty()) triangulate::check_colmap_camera(input.camera, input.camera_source);
+        if (!cli.colmap.empty()) {
+          if (input.cameras.empty()) triangulate::check_colmap_camera(input.camera, input.camera_source);
+          for (const auto& c : input.cameras) triangulate::check_colmap_camera(c.camera, c.source);
+        }
 
         const triangulate::Reconstruction result = triangulate::reconstruct(input, options);
         triangulate::log_report(result.report);

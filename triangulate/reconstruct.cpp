@@ -23,6 +23,14 @@
 namespace photomill::triangulate {
 namespace {
 
+// The focal length that turns pixel thresholds into normalised ones: the mean of fx and fy over
+// the cameras (their spread only scales a RANSAC threshold).
+double mean_focal_px(const Scene& scene) {
+  double sum = 0;
+  for (const CameraModel& c : scene.cameras) sum += 0.5 * (c.params[kFx] + c.params[kFy]);
+  return sum / static_cast<double>(scene.cameras.size());
+}
+
 using Clock = std::chrono::steady_clock;
 
 std::string fmt(double v, int precision = 3) {
@@ -198,7 +206,7 @@ bool Pipeline::register_from_control() {
       xyz.push_back(*t.control_mm);
     }
     if (corr.size() < o_.control_min_points || collinear(xyz, o_.collinear_tolerance)) continue;
-    const auto pose = estimate_absolute_pose(scene_.camera, corr, o_.ransac, o_.control_min_points, o_.collinear_tolerance);
+    const auto pose = estimate_absolute_pose(scene_.camera_of(i), corr, o_.ransac, o_.control_min_points, o_.collinear_tolerance);
     if (!pose) continue;
     scene_.images[i].registered = true;
     scene_.images[i].cam_from_world = pose->cam_from_world;
@@ -261,7 +269,7 @@ void Pipeline::start_incremental() {
   std::stable_sort(candidates.begin(), candidates.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
   if (candidates.size() > o_.initial_pair_candidates) candidates.resize(o_.initial_pair_candidates);
 
-  const double focal = 0.5 * (scene_.camera.params[kFx] + scene_.camera.params[kFy]);
+  const double focal = mean_focal_px(scene_);
   // Each candidate pair, evaluated independently (in parallel): its relative pose, how many of
   // its tracks triangulate with enough angle, and their median angle.
   struct PairResult {
@@ -393,7 +401,7 @@ void Pipeline::grow() {
       const ObservationRef& ob = scene_.observations[o];
       if (ob.usable && placed(scene_.tracks[ob.track])) corr.push_back({scene_.tracks[ob.track].xyz_mm, ob.xy, ob.uv_px});
     }
-    const auto pose = estimate_absolute_pose(scene_.camera, corr, o_.ransac, o_.pnp_min_inliers, o_.collinear_tolerance);
+    const auto pose = estimate_absolute_pose(scene_.camera_of(best), corr, o_.ransac, o_.pnp_min_inliers, o_.collinear_tolerance);
     if (!pose) {
       failed.insert(best);
       continue;
@@ -425,7 +433,7 @@ void Pipeline::grow() {
 // RANSAC threshold. Pairs are tried from the most shared tracks down.
 bool Pipeline::register_by_relative_pose(const std::set<std::size_t>& skip) {
   if (o_.relative_min_scale_points == 0) return false;
-  const double focal = 0.5 * (scene_.camera.params[kFx] + scene_.camera.params[kFy]);
+  const double focal = mean_focal_px(scene_);
   std::map<std::pair<std::size_t, std::size_t>, std::size_t> shared;  // (unregistered, registered)
   for (const SceneTrack& t : scene_.tracks) {
     if (t.state == TrackState::Rejected) continue;
@@ -479,7 +487,7 @@ bool Pipeline::register_by_relative_pose(const std::set<std::size_t>& skip) {
     std::size_t agree = 0;
     for (const auto& [X, uv] : points) {
       double proj[2];
-      if (project(shape_of(scene_.camera), scene_.camera.params.data(), pose_u.data(), X.data(), proj) &&
+      if (project(shape_of(scene_.camera_of(u)), scene_.camera_of(u).params.data(), pose_u.data(), X.data(), proj) &&
           (Eigen::Vector2d(proj[0], proj[1]) - uv).norm() <= o_.ransac.threshold_px) {
         ++agree;
       }
@@ -984,7 +992,10 @@ void Pipeline::finish(Reconstruction& r) {
   rep.loss_scale_px = o_.bundle.loss_scale_px;
   rep.refine_intrinsics = to_string(o_.bundle.refine_intrinsics);
   rep.threads = geometry::thread_count(o_.threads);
-  r.camera = to_camera(scene_.camera, input_.camera);
+  for (std::size_t k = 0; k < scene_.cameras.size(); ++k) {
+    r.cameras.push_back(to_camera(scene_.cameras[k], input_.cameras.empty() ? input_.camera : input_.cameras[k].camera));
+  }
+  r.camera = r.cameras.front();
   if (o_.bundle.refine_intrinsics != IntrinsicsRefinement::None) {
     rep.refined_camera = {r.camera.fx(), r.camera.fy(), r.camera.cx(), r.camera.cy()};
     rep.refined_camera.insert(rep.refined_camera.end(), r.camera.distortion.begin(), r.camera.distortion.end());
@@ -998,14 +1009,40 @@ Reconstruction Pipeline::run() {
     log::debug(what + ": " + fmt(std::chrono::duration<double>(now - last).count()) + " s");
     last = now;
   };
-  const CameraModel camera = to_camera_model(input_.camera, input_.camera_source);
+  std::vector<CameraModel> cameras;
+  std::vector<std::string> prefixes;
+  if (input_.cameras.empty()) {
+    cameras.push_back(to_camera_model(input_.camera, input_.camera_source));
+  } else {
+    for (const PrefixCamera& c : input_.cameras) {
+      cameras.push_back(to_camera_model(c.camera, c.source));
+      prefixes.push_back(c.prefix);
+    }
+    if (o_.bundle.refine_intrinsics != IntrinsicsRefinement::None && cameras.size() > 1) {
+      throw UsageError("--refine-intrinsics adjusts one camera; with several cameras calibrate each (calib, or calib "
+                       "--rig) and leave it out");
+    }
+  }
   if (input_.known_poses.empty() && input_.control_points.empty() && input_.scale_bars.empty() &&
       !o_.scale.marker_side_mm && !o_.scale.allow_arbitrary_scale) {
     throw UsageError("no datum: give control points (--control-points), scale bars (--scale-bars), the marker side "
                      "(--marker-side-mm) or known poses (--known-poses), or accept an arbitrary scale with "
                      "--arbitrary-scale");
   }
-  scene_ = build_scene(input_.tracks, camera, input_.control_points, o_.coded_id_limit, o_.weight_by_feature_size);
+  scene_ = build_scene(
+      input_.tracks, cameras,
+      [&](const std::string& image) -> std::size_t {
+        if (prefixes.empty()) return 0;
+        const auto m = match_rig_prefix(prefixes, image);
+        if (!m) {
+          std::string list;
+          for (const auto& p : prefixes) list += (list.empty() ? "'" : ", '") + p + "'";
+          throw InputError(input_.tracks_source, 0, "image '" + image + "' starts with none of the cameras' prefixes (" +
+                                                        list + "): give its camera");
+        }
+        return m->camera;
+      },
+      input_.control_points, o_.coded_id_limit, o_.weight_by_feature_size);
   registered_by_.assign(scene_.images.size(), "");
   check_input();
 

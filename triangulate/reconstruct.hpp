@@ -113,11 +113,20 @@ struct ReconstructOptions {
   int threads = 0;  // 0: all hardware threads
 };
 
+// One of several cameras: the photos whose names (or file names) start with `prefix` (formats/
+// camera.hpp, match_rig_prefix) were taken with it.
+struct PrefixCamera {
+  std::string prefix;
+  Camera camera;
+  std::string source;
+};
+
 struct ReconstructInput {
   std::vector<TrackObservation> tracks;
   std::string tracks_source = "<tracks>";
-  Camera camera;
+  Camera camera;                        // every photo's, unless `cameras` is given
   std::string camera_source = "<camera>";
+  std::vector<PrefixCamera> cameras;    // several cameras, by image name prefix (a rig's, --camera P=F)
   std::vector<ControlPoint> control_points;
   std::vector<ScaleBar> scale_bars;
   // Poses the user knows (a turntable, a robot, another tool's orientation), in the world frame
@@ -131,7 +140,8 @@ struct ReconstructInput {
 
 struct Reconstruction {
   Scene scene;                     // final poses, points, inlier flags
-  Camera camera;                   // as given, or refined by self-calibration
+  Camera camera;                   // as given, or refined by self-calibration (the first of several)
+  std::vector<Camera> cameras;     // every camera, in the order of ReconstructInput::cameras
   std::vector<double> sigma_mm;    // per track (see covariance.hpp); NaN outside the result
   std::vector<Eigen::Matrix3d> covariance_mm2;  // per track (see covariance.hpp); NaN outside the adjustment
   std::vector<char> in_result;     // per track: part of the output cloud

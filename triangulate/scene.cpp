@@ -48,14 +48,22 @@ const char* to_string(ObservationClass c) { return c == ObservationClass::Coded 
 Scene build_scene(const std::vector<TrackObservation>& tracks, const CameraModel& camera,
                   const std::vector<ControlPoint>& control_points, TrackId coded_id_limit,
                   bool weight_by_size) {
+  return build_scene(tracks, std::vector<CameraModel>{camera}, [](const std::string&) { return std::size_t{0}; },
+                     control_points, coded_id_limit, weight_by_size);
+}
+
+Scene build_scene(const std::vector<TrackObservation>& tracks, const std::vector<CameraModel>& cameras,
+                  const std::function<std::size_t(const std::string&)>& camera_of_image,
+                  const std::vector<ControlPoint>& control_points, TrackId coded_id_limit,
+                  bool weight_by_size) {
   Scene s;
-  s.camera = camera;
+  s.cameras = cameras;
   std::unordered_map<std::string, std::size_t> image_index;
   std::unordered_map<TrackId, std::size_t>& track_index = s.track_by_id;
   s.observations.reserve(tracks.size());
   for (const TrackObservation& t : tracks) {
     auto [im, new_image] = image_index.try_emplace(t.image, s.images.size());
-    if (new_image) s.images.push_back({t.image, {}, false, {}});
+    if (new_image) s.images.push_back({t.image, camera_of_image(t.image), {}, false, {}});
     auto [tr, new_track] = track_index.try_emplace(t.track_id, s.tracks.size());
     if (new_track) {
       SceneTrack track;
@@ -66,7 +74,7 @@ Scene build_scene(const std::vector<TrackObservation>& tracks, const CameraModel
     ob.image = im->second;
     ob.track = tr->second;
     ob.uv_px = Eigen::Vector2d(t.u_px, t.v_px);
-    const auto xy = undistort(camera, ob.uv_px);
+    const auto xy = undistort(s.camera_of(ob.image), ob.uv_px);
     ob.usable = xy.has_value();
     ob.xy = xy.value_or(Eigen::Vector2d::Zero());
     const std::size_t index = s.observations.size();

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstddef>
+#include <functional>
 #include <optional>
 #include <string>
 #include <unordered_map>
@@ -63,6 +64,7 @@ struct ObservationRef {
 
 struct SceneImage {
   std::string name;
+  std::size_t camera = 0;                 // index into Scene::cameras
   std::vector<std::size_t> observations;  // indices into Scene::observations
   bool registered = false;
   PoseBlock cam_from_world{};             // valid when registered
@@ -100,7 +102,8 @@ struct SceneTrack {
 };
 
 struct Scene {
-  CameraModel camera;
+  std::vector<CameraModel> cameras;       // one per camera; each image names its own
+  const CameraModel& camera_of(std::size_t image) const { return cameras[images[image].camera]; }
   std::vector<SceneImage> images;         // in order of first appearance in the tracks
   std::vector<SceneTrack> tracks;         // in order of first appearance
   std::vector<ObservationRef> observations;
@@ -125,6 +128,11 @@ struct Scene {
 // points grows about linearly with their features' size (docs/measurements/triangulate.md).
 constexpr double kMinRelativeSigma = 0.25;
 Scene build_scene(const std::vector<TrackObservation>& tracks, const CameraModel& camera,
+                  const std::vector<ControlPoint>& control_points, TrackId coded_id_limit = 4096,
+                  bool weight_by_size = true);
+// Several cameras: `camera_of_image` gives the index into `cameras` of each image name.
+Scene build_scene(const std::vector<TrackObservation>& tracks, const std::vector<CameraModel>& cameras,
+                  const std::function<std::size_t(const std::string&)>& camera_of_image,
                   const std::vector<ControlPoint>& control_points, TrackId coded_id_limit = 4096,
                   bool weight_by_size = true);
 

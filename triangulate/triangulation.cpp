@@ -29,7 +29,7 @@ std::vector<double> reprojection_errors(const CameraModel& camera, const std::ve
   std::vector<double> e;
   e.reserve(views.size());
   for (const PointView& v : views) {
-    const auto uv = project_point(camera, v.cam_from_world->data(), X);
+    const auto uv = project_point(v.camera ? *v.camera : camera, v.cam_from_world->data(), X);
     e.push_back(uv ? (*uv - v.uv_px).norm() : std::numeric_limits<double>::infinity());
   }
   return e;
@@ -94,7 +94,8 @@ Eigen::Vector3d refine_point(const CameraModel& camera, const std::vector<PointV
       J3 pose[6];
       for (int k = 0; k < 6; ++k) pose[k] = J3((*v.cam_from_world)[static_cast<std::size_t>(k)]);
       J3 uv[2];
-      if (!project(shape_of(camera), camera.params.data(), pose, Xj, uv)) return X;  // left to the checks
+      const CameraModel& cam = v.camera ? *v.camera : camera;
+      if (!project(shape_of(cam), cam.params.data(), pose, Xj, uv)) return X;  // left to the checks
       Eigen::Matrix<double, 2, 3> J;
       J.row(0) = uv[0].v.transpose();
       J.row(1) = uv[1].v.transpose();
@@ -170,6 +171,7 @@ std::vector<PointView> views_of(const Scene& scene, const std::vector<std::size_
     const SceneImage& im = scene.images[ob.image];
     PointView v;
     v.cam_from_world = &im.cam_from_world;
+    v.camera = &scene.cameras[im.camera];
     v.R = rotation_of(im.cam_from_world);
     v.t = translation_of(im.cam_from_world);
     v.centre_mm = -v.R.transpose() * v.t;
@@ -193,7 +195,7 @@ std::size_t triangulate_tracks(Scene& scene, const TriangulationOptions& options
         track.issue = TrackIssue::NotRegistered;
         continue;
       }
-      const PointEstimate e = triangulate_point(scene.camera, views_of(scene, obs), options);
+      const PointEstimate e = triangulate_point(scene.cameras.front(), views_of(scene, obs), options);
       switch (e.status) {
         case TriangulationStatus::Ok:
           for (std::size_t k = 0; k < e.dropped.size(); ++k) {

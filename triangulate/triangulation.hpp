@@ -29,6 +29,7 @@ struct TriangulationOptions {
 // One view of a point: the camera's pose and the observation in it.
 struct PointView {
   const PoseBlock* cam_from_world = nullptr;
+  const CameraModel* camera = nullptr;  // the view's camera; null: the `camera` the functions are given
   Eigen::Matrix3d R;          // rotation of cam_from_world
   Eigen::Vector3d t;          // translation, mm
   Eigen::Vector3d centre_mm;  // C = -R^T t
