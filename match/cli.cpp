@@ -4,12 +4,14 @@
 #include <algorithm>
 #include <filesystem>
 #include <map>
+#include <set>
 #include <sstream>
 
 #include <opencv2/imgcodecs.hpp>
 
 #include <CLI/CLI.hpp>
 
+#include "formats/camera.hpp"
 #include "formats/camera_bounds.hpp"
 #include "formats/error.hpp"
 #include "formats/image.hpp"
@@ -28,7 +30,14 @@ void add_options(CLI::App& app, Cli& c) {
                  "'-' reads stdin (the default when nothing else is given)");
   app.add_option("--features", c.features_dir, "Folder of .feat files (detect --features): all *.feat in it");
   app.add_option("-o,--output", c.output, "Tracks CSV (default: stdout)");
-  app.add_option("--camera", c.camera, "camera.yaml: undistort before the epipolar checks (recommended)");
+  auto* cam = app.add_option("--camera", c.camera, "camera.yaml: undistort before the epipolar checks (recommended)");
+  auto* cam_for = app.add_option("--camera-for", c.camera_for,
+                                 "PREFIX=FILE: the camera.yaml of the photos whose names (or file names, for a PREFIX "
+                                 "without '/') start with PREFIX; repeatable, one per camera")
+                      ->allow_extra_args(false)->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  auto* rig = app.add_option("--rig", c.rig, "rig.yaml (calib --rig): each photo's camera by its prefix");
+  cam->excludes(cam_for)->excludes(rig);
+  cam_for->excludes(rig);
   app.add_option("--poses", c.poses, "Known poses CSV (cam_from_world): verify with F from them (needs --camera)");
   const std::string verify = "Verification";
   app.add_option("--threshold-px", o.fit.threshold_px, "Epipolar inlier threshold (Sampson distance), px")
@@ -140,8 +149,27 @@ MatchInputs read_inputs(Cli& c) {
   MatchInputs in;
   std::map<std::string, std::string> run_of_image, observations_source;
   std::vector<std::string> feature_sources;  // the detect run of each image's observations
+  std::vector<std::string> camera_sources;
   if (!c.camera.empty()) {
     in.camera = read_camera_yaml(*tool::open_input(c.camera), tool::source_name(c.camera));
+  } else if (!c.rig.empty()) {
+    const Rig rig = read_rig_yaml(*tool::open_input(c.rig), tool::source_name(c.rig));
+    for (std::size_t k = 0; k < rig.cameras.size(); ++k) {
+      in.cameras_by_prefix.emplace_back(rig.cameras[k].prefix, rig.cameras[k].camera);
+      camera_sources.push_back(tool::source_name(c.rig) + " (camera_" + std::to_string(k) + ")");
+    }
+  } else if (!c.camera_for.empty()) {
+    std::set<std::string> seen;
+    for (const std::string& arg : c.camera_for) {
+      const auto eq = arg.find('=');
+      if (eq == std::string::npos || eq == 0 || eq + 1 == arg.size()) {
+        throw UsageError("--camera-for '" + arg + "': expected PREFIX=FILE (e.g. left=left.yaml)");
+      }
+      const std::string prefix = arg.substr(0, eq), file = arg.substr(eq + 1);
+      if (!seen.insert(prefix).second) throw UsageError("--camera-for: prefix '" + prefix + "' given twice");
+      in.cameras_by_prefix.emplace_back(prefix, read_camera_yaml(*tool::open_input(file), tool::source_name(file)));
+      camera_sources.push_back(tool::source_name(file));
+    }
   } else {
     log::warn("no --camera: epipolar checks on distorted pixels, where lens distortion can reject correct points");
   }
@@ -155,6 +183,25 @@ MatchInputs read_inputs(Cli& c) {
       const auto obs = read_observations_with_runs(stream, tool::source_name(path), &run_of_image);
       for (const auto& [image, run] : run_of_image) observations_source.emplace(image, tool::source_name(path));
       if (in.camera) check_inside_camera_image(obs, tool::source_name(path), *in.camera, tool::source_name(c.camera));
+      if (!in.cameras_by_prefix.empty()) {
+        std::vector<std::string> prefixes;
+        for (const auto& pc : in.cameras_by_prefix) prefixes.push_back(pc.first);
+        std::vector<std::vector<Observation>> by_camera(prefixes.size());
+        for (const auto& ob : obs) {
+          const auto m = match_rig_prefix(prefixes, ob.image);
+          if (!m) {
+            std::string list;
+            for (const auto& p : prefixes) list += (list.empty() ? "'" : ", '") + p + "'";
+            throw InputError(tool::source_name(path), 0, "image '" + ob.image + "' starts with none of the cameras' "
+                                                         "prefixes (" + list + "): give its camera");
+          }
+          by_camera[m->camera].push_back(ob);
+        }
+        for (std::size_t k = 0; k < prefixes.size(); ++k) {
+          check_inside_camera_image(by_camera[k], tool::source_name(path), in.cameras_by_prefix[k].second,
+                                    camera_sources[k]);
+        }
+      }
       in.observations.insert(in.observations.end(), obs.begin(), obs.end());
     }
   }

@@ -14,6 +14,8 @@ struct Cli {
   std::vector<std::string> inputs;  // observations CSVs and/or .feat files; "-" = stdin
   std::string features_dir;         // every *.feat in it
   std::string camera;
+  std::vector<std::string> camera_for;  // PREFIX=FILE, one per camera
+  std::string rig;                      // rig.yaml: its cameras by prefix
   std::string poses;
   std::string output = "-";
   bool no_mutual = false;

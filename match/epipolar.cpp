@@ -21,11 +21,15 @@ Eigen::Matrix3d skew(const Eigen::Vector3d& t) {
 }  // namespace
 
 Eigen::Matrix3d fundamental_from_poses(const Eigen::Matrix3d& K, const Pose& a, const Pose& b) {
+  return fundamental_from_poses(K, K, a, b);
+}
+
+Eigen::Matrix3d fundamental_from_poses(const Eigen::Matrix3d& K_a, const Eigen::Matrix3d& K_b, const Pose& a,
+                                       const Pose& b) {
   const Eigen::Matrix3d Ra = a.rotation(), Rb = b.rotation();
   const Eigen::Matrix3d R = Rb * Ra.transpose();
   const Eigen::Vector3d t = b.cam_from_world_translation_mm - R * a.cam_from_world_translation_mm;
-  const Eigen::Matrix3d K_inv = K.inverse();
-  return K_inv.transpose() * skew(t) * R * K_inv;
+  return K_b.inverse().transpose() * skew(t) * R * K_a.inverse();
 }
 
 EpipolarPencil::EpipolarPencil(const std::vector<Eigen::Vector2d>& pts, const Eigen::Matrix3d& F) {

@@ -24,6 +24,9 @@ namespace photomill::match {
 // poses cam_from_world of both images and the camera matrix K (shared by both):
 //   R = R_b R_a^T, t = t_b - R t_a (b_from_a), F = K^-T [t]x R K^-1.
 Eigen::Matrix3d fundamental_from_poses(const Eigen::Matrix3d& K, const Pose& a, const Pose& b);
+// The same for two cameras: F = K_b^-T [t]x R K_a^-1.
+Eigen::Matrix3d fundamental_from_poses(const Eigen::Matrix3d& K_a, const Eigen::Matrix3d& K_b, const Pose& a,
+                                       const Pose& b);
 
 // First-order geometric error of x_a <-> x_b under F (Hartley & Zisserman eq. 11.9), pixels:
 //   d = |x_b^T F x_a| / sqrt((F x_a)_1^2 + (F x_a)_2^2 + (F^T x_b)_1^2 + (F^T x_b)_2^2).

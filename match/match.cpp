@@ -28,6 +28,7 @@ namespace photomill::match {
 namespace {
 
 struct ImageData {
+  const Camera* camera = nullptr;               // its camera, if any is given
   std::vector<Eigen::Vector2d> coded_px;        // as observed
   std::vector<Eigen::Vector2d> coded_ideal;     // undistorted
   std::vector<PointId> coded_ids;
@@ -178,7 +179,10 @@ void check_options(const MatchInputs& in, const MatchOptions& o) {
   if (!(o.guided_ratio > 0 && o.guided_ratio <= 1)) throw UsageError("--guided-ratio must be in (0, 1]");
   if (!(o.fit.threshold_px > 0)) throw UsageError("--threshold-px must be positive");
   if (o.feature_track_offset < 0) throw UsageError("--feature-id-offset must be non-negative");
-  if (!in.poses.empty() && !in.camera) throw UsageError("--poses needs --camera (F = K^-T [t]x R K^-1)");
+  if (!in.poses.empty() && !in.camera && in.cameras_by_prefix.empty()) {
+    throw UsageError("--poses needs --camera (F = K^-T [t]x R K^-1)");
+  }
+  if (in.camera && !in.cameras_by_prefix.empty()) throw UsageError("give one camera for all photos or one per prefix, not both");
 }
 
 // Each image's coded observations, features and (for refinement) grey image; `image_index` maps
@@ -186,6 +190,21 @@ void check_options(const MatchInputs& in, const MatchOptions& o) {
 std::vector<ImageData> load_images(const MatchInputs& in, const MatchOptions& o,
                                    const std::unordered_map<std::string, std::size_t>& image_index, std::size_t n) {
   std::vector<ImageData> data(n);
+  std::vector<std::string> prefixes;
+  for (const auto& [prefix, camera] : in.cameras_by_prefix) prefixes.push_back(prefix);
+  for (const auto& [name, i] : image_index) {
+    if (in.camera) {
+      data[i].camera = &*in.camera;
+    } else if (!prefixes.empty()) {
+      const auto m = match_rig_prefix(prefixes, name);
+      if (!m) {
+        std::string list;
+        for (const auto& p : prefixes) list += (list.empty() ? "'" : ", '") + p + "'";
+        throw InputError(name, 0, "starts with none of the cameras' prefixes (" + list + "): give its camera");
+      }
+      data[i].camera = &in.cameras_by_prefix[m->camera].second;
+    }
+  }
   for (const auto& ob : in.observations) {
     ImageData& d = data[image_index.at(ob.image)];
     if (!d.coded_index.emplace(ob.point_id, d.coded_ids.size()).second) {
@@ -263,10 +282,16 @@ void check_id_collisions(const std::vector<ImageData>& data, const MatchInputs& 
 
 // Undistorts the coded points and keypoints, finds each keypoint's canonical copy, and indexes the
 // descriptors for FLANN's kd-trees unless matching is guided (in parallel over images).
-void prepare_images(std::vector<ImageData>& data, const MatchInputs& in, const MatchOptions& o, bool guided) {
-  const Undistorter undistort(in.camera);
+void prepare_images(std::vector<ImageData>& data, const MatchOptions& o, bool guided) {
+  // One undistorter per camera (a photo without a camera keeps its pixels).
+  std::map<const Camera*, Undistorter> undistorters;
+  for (const ImageData& d : data) {
+    if (d.camera && !undistorters.count(d.camera)) undistorters.emplace(d.camera, Undistorter(*d.camera));
+  }
+  const Undistorter none;
   geometry::parallel_for(data.size(), o.jobs, [&](std::size_t i) {
     ImageData& d = data[i];
+    const Undistorter& undistort = d.camera ? undistorters.at(d.camera) : none;
     d.coded_ideal = undistort.apply(d.coded_px);
     if (!d.features) return;
     std::vector<Eigen::Vector2d> kp;
@@ -372,7 +397,7 @@ PairWork match_pair(ImageData& a, ImageData& b, const Pose* pose_a, const Pose* 
   w.report.coded_shared = static_cast<int>(pa.size());
   std::vector<FeatureMatch> matches;
   if (guided) {
-    w.F = fundamental_from_poses(in.camera->camera_matrix, *pose_a, *pose_b);
+    w.F = fundamental_from_poses(a.camera->camera_matrix, b.camera->camera_matrix, *pose_a, *pose_b);
     if (a.features && b.features) matches = match_guided(a, b, *w.F, o);
   } else if (features && a.index && b.index) {
     matches = match_descriptors(a, b, o);
@@ -388,7 +413,7 @@ PairWork match_pair(ImageData& a, ImageData& b, const Pose* pose_a, const Pose* 
   }
   std::vector<bool> inlier(pa.size(), false);
   if (!in.poses.empty()) {
-    w.F = fundamental_from_poses(in.camera->camera_matrix, *pose_a, *pose_b);
+    w.F = fundamental_from_poses(a.camera->camera_matrix, b.camera->camera_matrix, *pose_a, *pose_b);
     w.report.from_poses = true;
     for (std::size_t i = 0; i < pa.size(); ++i) inlier[i] = sampson_distance_px(*w.F, pa[i], pb[i]) <= o.fit.threshold_px;
   } else if (const auto fit = estimate_fundamental(pa, pb, o.fit)) {
@@ -682,7 +707,7 @@ MatchResult match(const MatchInputs& in, const MatchOptions& o, const std::funct
   // kd-tree search over all of them.
   const bool guided = o.guided && !in.poses.empty();
   say("indexing " + std::to_string(in.features.size()) + " feature sets");
-  prepare_images(data, in, o, guided);
+  prepare_images(data, o, guided);
 
   const ImagesOfPoint seen_in = images_of_points(data);
   const auto pairs = select_pairs(data, seen_in, result.images, pose_of, o, guided);

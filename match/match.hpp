@@ -66,6 +66,9 @@ struct MatchInputs {
   std::vector<Observation> observations;  // coded points (may be empty)
   std::vector<FeatureSet> features;       // natural features, one set per image (may be empty)
   std::optional<Camera> camera;           // undistort before epipolar checks
+  // Or a camera per photo: the photos whose names (or file names, for a prefix without '/') start
+  // with the prefix (formats/camera.hpp, match_rig_prefix). Every photo must have one.
+  std::vector<std::pair<std::string, Camera>> cameras_by_prefix;
   std::vector<Pose> poses;                // known poses: F from them (needs camera)
   // For MatchOptions::refine: the image of each feature set (same order as `features`),
   // single-channel CV_32F.

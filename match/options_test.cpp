@@ -329,7 +329,28 @@ INSTANTIATE_TEST_SUITE_P(
         // The .feat files name the photos in the crops' folder: read from another folder, they are missing.
         OptionCase{"image_dir", features({"--image-dir", "no-such-folder"}), 1, "no-such-folder", nullptr},
         OptionCase{"image_dir_same", features({"--image-dir", "."}), 0, "",
-                   [](const Outcome& r) { EXPECT_EQ(r.r.out, plain_features().r.out); }}),
+                   [](const Outcome& r) { EXPECT_EQ(r.r.out, plain_features().r.out); }},
+        // A camera per photo by name prefix (issue 23): the demo's 12 photos split between two
+        // prefixes, both with the demo camera, match as with --camera.
+        OptionCase{"camera_for",
+                   {"{demo}observations.csv", "--camera-for", "part_0={demo}camera.yaml", "--camera-for",
+                    "part_1={demo}camera.yaml"},
+                   0, "",
+                   [](const Outcome& r) {
+                     EXPECT_EQ(r.tracks, plain_coded().tracks);
+                     EXPECT_EQ(r.r.err.find("no --camera"), std::string::npos) << r.r.err;
+                   }},
+        OptionCase{"camera_for_missing_photo", {"{demo}observations.csv", "--camera-for", "part_0={demo}camera.yaml"}, 1,
+                   "observations.csv: image 'part_10.jpg' starts with none of the cameras' prefixes ('part_0'): give its camera",
+                   nullptr},
+        OptionCase{"camera_for_syntax", {"{demo}observations.csv", "--camera-for", "{demo}camera.yaml"}, 2,
+                   "expected PREFIX=FILE", nullptr},
+        OptionCase{"camera_for_and_camera", coded({"--camera-for", "part_={demo}camera.yaml"}), 2, "excludes", nullptr},
+        // --rig: the cameras of a rig.yaml by prefix; a stereo rig's (left, right) fits no demo photo.
+        OptionCase{"rig",
+                   {"{demo}observations.csv", "--rig",
+                    std::string(PHOTOMILL_SOURCE_DIR) + "/tests/fuzz/corpus/rig_yaml/valid-stereo-rig.yaml"},
+                   1, "starts with none of the cameras' prefixes ('left', 'right')", nullptr}),
     [](const auto& info) { return std::string(info.param.name); });
 
 }  // namespace

@@ -1,6 +1,6 @@
 // OpenCV's stereo chessboard photos (../shared/data/opencv-chessboard, 13 left/right pairs) as one
-// rig, through the executables: detect the corners, calib --rig, then every pair triangulated by
-// triangulate --rig from the rig alone (no board geometry given to it). The 93 neighbour distances
+// rig, through the executables: detect the corners, calib --rig, then every pair through
+// detect | match --rig | triangulate --rig, from the rig alone (no board geometry given). The 93 neighbour distances
 // of each pair are one square (issue 23: |mean - 1| <= 0.0014, std <= 0.0155; OpenCV's own
 // stereoCalibrate + triangulatePoints give 1.00135 / 0.01554 over the 1 209, README).
 #include <cmath>
@@ -27,27 +27,10 @@ namespace fs = std::filesystem;
 
 const fs::path kSet = fs::path(PHOTOMILL_SHARED_DIR) / "data" / "opencv-chessboard";
 
-// The observations of detect (image,point_id,u_px,v_px) as tracks (track_id,image,u_px,v_px):
-// a board corner's id names the same corner in every photo.
-std::string as_tracks(const std::string& observations) {
-  std::istringstream in(observations);
-  std::string line, out;
-  while (std::getline(in, line)) {
-    if (line.empty() || line[0] == '#') continue;
-    if (line.rfind("image,", 0) == 0) {
-      out += "track_id,image,u_px,v_px\n";
-      continue;
-    }
-    const auto c1 = line.find(','), c2 = line.find(',', c1 + 1);
-    out += line.substr(c1 + 1, c2 - c1 - 1) + "," + line.substr(0, c1) + line.substr(c2) + "\n";
-  }
-  return out;
-}
-
 TEST(OpenCvStereoRig, EveryPairTriangulatedFromTheRigAlone) {
   if (!fs::exists(kSet / "left01.jpg")) GTEST_SKIP() << "shared data not found: " << kSet;
   const std::vector<std::string> numbers{"01", "02", "03", "04", "05", "06", "07", "08", "09", "11", "12", "13", "14"};
-  photomill::test::TempDir dir;
+  photomill::test::TempDir dir;  // rig.yaml and the pairs' clouds
   std::vector<std::string> args{"--chessboard", "9x6", "-q"};
   for (const char* side : {"left", "right"}) {
     for (const auto& n : numbers) args.push_back((kSet / (side + n + ".jpg")).string());
@@ -64,13 +47,11 @@ TEST(OpenCvStereoRig, EveryPairTriangulatedFromTheRigAlone) {
     const auto pair = run_tool("detect", {"--chessboard", "9x6", "-q", (kSet / ("left" + n + ".jpg")).string(),
                                           (kSet / ("right" + n + ".jpg")).string()});
     ASSERT_EQ(pair.exit_code, 0) << pair.err;
-    const fs::path tracks = dir.path() / ("tracks" + n + ".csv");
-    {
-      std::ofstream f(tracks);
-      f << as_tracks(pair.out);
-    }
+    // match undistorts each photo with its own camera of the rig.
+    const auto mat = run_tool("match", {"-q", "--rig", rig, "-"}, pair.out);
+    ASSERT_EQ(mat.exit_code, 0) << mat.err;
     const fs::path ply = dir.path() / ("pair" + n + ".ply");
-    const auto tri = run_tool("triangulate", {tracks.string(), "--rig", rig, "-o", ply.string()});
+    const auto tri = run_tool("triangulate", {"--rig", rig, "-o", ply.string()}, mat.out);
     ASSERT_EQ(tri.exit_code, 0) << "pair " << n << ": " << tri.err;
     EXPECT_NE(tri.err.find("2 of 2 images"), std::string::npos) << tri.err;
     std::ifstream in(ply, std::ios::binary);
