@@ -361,6 +361,26 @@ void write_fixtures(const fs::path& dir) {
   f["cam_huge.yaml"] = replace_all(cam, "image_width: 2000", "image_width: 2000000000");
   f["cam_fx.yaml"] = replace_all(cam, "2400., 0., 999.5", "1e308, 0., 999.5");
 
+  // Rigs (calib --rig's rig.yaml): the demo camera twice, as "left" and "right" (no photo of the
+  // demo has those prefixes), and the same file cut before its second camera.
+  {
+    auto camera_block = [&](int k, const std::string& prefix, const std::string& tx) {
+      std::string out = "camera_" + std::to_string(k) + "_prefix: \"" + prefix + "\"\n";
+      for (const auto& l : lines_of(cam)) {
+        if (l.empty() || l[0] == '%' || l[0] == '#' || l.rfind("---", 0) == 0) continue;
+        out += (l[0] == ' ' ? "" : "camera_" + std::to_string(k) + "_") + l + "\n";
+      }
+      out += "camera_" + std::to_string(k) + "_cam_from_rig_rotation: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n"
+             "   data: [ 1., 0., 0., 0., 1., 0., 0., 0., 1. ]\n";
+      out += "camera_" + std::to_string(k) + "_cam_from_rig_translation_mm: !!opencv-matrix\n   rows: 3\n   cols: 1\n"
+             "   dt: d\n   data: [ " + tx + ", 0., 0. ]\n";
+      return out;
+    };
+    const std::string head = "%YAML:1.0\n---\nrig_cameras: 2\n";
+    f["rig_lr.yaml"] = head + camera_block(0, "left", "0.") + camera_block(1, "right", "-100.");
+    f["rig_cut.yaml"] = head + camera_block(0, "left", "0.");
+  }
+
   // Point clouds (fitsurf).
   const std::string xyz = cloud_xyz();
   f["cloud.xyz"] = xyz;
