@@ -95,6 +95,52 @@ TEST(Rig, RecoversTheRelativePoseWithinItsSigma) {
   }
 }
 
+// Three cameras: a third one 60 mm above the first, seeing only some frames; its pose in the rig
+// comes out as well as the second's, and each camera keeps its own intrinsics.
+TEST(Rig, ThreeCameras) {
+  const StereoScene s = make_stereo(6);
+  std::vector<Observation> obs = s.observations;
+  Eigen::Isometry3d up_from_left = Eigen::Isometry3d::Identity();
+  up_from_left.linear() = Eigen::AngleAxisd(-2 * M_PI / 180, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  up_from_left.translation() = Eigen::Vector3d(0, 60, 1);
+  const cv::Matx33d K(990, 0, 650.5, 0, 991, 470.2, 0, 0, 1);
+  const std::vector<double> dist{-0.11, 0.04, 0.0002, 0.0001, 0};
+  std::mt19937 rng(77);
+  std::normal_distribution<double> noise(0, 0.1);
+  for (std::size_t v = 0; v < s.left.poses.size(); v += 2) {  // every other frame
+    const Pose& p = s.left.poses[v];
+    Eigen::Isometry3d left_from_world = Eigen::Isometry3d::Identity();
+    left_from_world.linear() = p.rotation();
+    left_from_world.translation() = p.cam_from_world_translation_mm;
+    const Eigen::Isometry3d up_from_world = up_from_left * left_from_world;
+    const Eigen::AngleAxisd aa(up_from_world.linear());
+    const cv::Vec3d rvec(aa.angle() * aa.axis().x(), aa.angle() * aa.axis().y(), aa.angle() * aa.axis().z());
+    const Eigen::Vector3d t = up_from_world.translation();
+    std::vector<cv::Point3d> pts;
+    for (const auto& c : s.left.control) pts.emplace_back(c.xyz_mm.x(), c.xyz_mm.y(), c.xyz_mm.z());
+    std::vector<cv::Point2d> img;
+    cv::projectPoints(pts, rvec, cv::Vec3d(t.x(), t.y(), t.z()), K, dist, img);
+    for (std::size_t i = 0; i < img.size(); ++i) {
+      if (img[i].x < 0 || img[i].y < 0 || img[i].x > 1279 || img[i].y > 959) continue;
+      obs.push_back({"U" + p.image, s.left.control[i].point_id, img[i].x + noise(rng), img[i].y + noise(rng)});
+    }
+  }
+  const RigResult r = calibrate_rig(obs, s.left.control, {"L", "R", "U"}, {s.left.size, s.left.size, s.left.size}, {},
+                                    "obs");
+  ASSERT_EQ(r.rig.cameras.size(), 3u);
+  const RigCamera& right = r.rig.cameras[1];
+  const RigCamera& up = r.rig.cameras[2];
+  EXPECT_LT((right.cam_from_rig_translation_mm - s.right_from_left.translation()).norm(), 0.2);
+  EXPECT_LT((up.cam_from_rig_translation_mm - up_from_left.translation()).norm(), 0.2);
+  EXPECT_LT(angle_deg(up.cam_from_rig_rotation, up_from_left.linear()), 0.05);
+  EXPECT_NEAR(up.camera.fx(), 990, 2);
+  EXPECT_NEAR(right.camera.fx(), 1010, 2);
+  EXPECT_NEAR(r.rig.cameras[0].camera.fx(), 1000, 2);
+  int three = 0;
+  for (const auto& f : r.frames) three += f.cameras == 3;
+  EXPECT_EQ(three, 5);
+}
+
 TEST(Rig, LeavesOutAFrameWhoseBoardMoved) {
   const StereoScene s = make_stereo(4, 6);
   const RigResult r = calibrate_rig(s.observations, s.left.control, {"L", "R"}, {s.left.size, s.left.size}, {}, "obs");
