@@ -10,6 +10,8 @@
 #include <optional>
 #include <string_view>
 
+#include <Eigen/LU>  // determinant()
+
 #include "formats/error.hpp"
 #include "formats/run.hpp"
 #include "formats/text.hpp"
