@@ -72,6 +72,15 @@ void to_model_block(const T* intrinsics, const T* distortion, bool fix_aspect_ra
 }
 inline geometry::ModelShape model_shape(const ModelOptions& model) { return {0, model.rational, false, false}; }
 
+// The pixel of a point p in the camera's frame through calib's blocks (the projection of every
+// calib residual: ReprojectionResidual below, the rig's in rig.cpp).
+template <typename T>
+void project_in_camera(const T* intrinsics, const T* distortion, const ModelOptions& model, const T* p, T* uv) {
+  T k[geometry::kIntrinsicCount];
+  to_model_block(intrinsics, distortion, model.fix_aspect_ratio, k);
+  geometry::distort_to_pixel(model_shape(model), k, p[0] / p[2], p[1] / p[2], &uv[0], &uv[1]);
+}
+
 // Residual of one observation: r = project(K, d, R X + t) - (u, v), px. Parameter blocks:
 // intrinsics[4], distortion[8], pose[6] (layout above). Used by Ceres (autodiff) and, with
 // T = double, by the simplex and the reports.
@@ -85,10 +94,8 @@ struct ReprojectionResidual {
     const T X[3] = {T(world_mm.x()), T(world_mm.y()), T(world_mm.z())};
     T p[3];
     geometry::transform_point(pose, X, p);
-    T k[geometry::kIntrinsicCount];
-    to_model_block(intrinsics, distortion, model.fix_aspect_ratio, k);
     T uv[2];
-    geometry::distort_to_pixel(model_shape(model), k, p[0] / p[2], p[1] / p[2], &uv[0], &uv[1]);
+    project_in_camera(intrinsics, distortion, model, p, uv);
     residual[0] = uv[0] - T(observed_px.x());
     residual[1] = uv[1] - T(observed_px.y());
     return true;

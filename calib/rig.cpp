@@ -69,10 +69,8 @@ struct RigResidual {
     const Eigen::Matrix<T, 3, 1> p = rotation * Eigen::Matrix<T, 3, 1>(p_rig[0], p_rig[1], p_rig[2]) +
                                      Eigen::Matrix<T, 3, 1>(t[0], t[1], t[2]);
     if (!(p[2] > T(0.0))) return false;
-    T k[geometry::kIntrinsicCount];
-    to_model_block(intrinsics, distortion, model.fix_aspect_ratio, k);
     T uv[2];
-    geometry::distort_to_pixel(model_shape(model), k, p[0] / p[2], p[1] / p[2], &uv[0], &uv[1]);
+    project_in_camera(intrinsics, distortion, model, p.data(), uv);
     residual[0] = uv[0] - T(observed_px.x());
     residual[1] = uv[1] - T(observed_px.y());
     return true;
@@ -290,6 +288,17 @@ RigResult calibrate_rig(const std::vector<Observation>& observations, const std:
     for (int i = 0; i < kDistortion; ++i) if (!f[static_cast<std::size_t>(i)]) out.push_back(i);
     return out;
   }();
+  // fn(f, k, residual) for every observation of the active frames (views their cameras kept).
+  auto each_observation = [&](const auto& fn) {
+    for (std::size_t f = 0; f < used.size(); ++f) {
+      if (!active[f]) continue;
+      for (std::size_t k = 0; k < n_cams; ++k) {
+        const FrameView& v = used[f].views[k];
+        if (!v.kept) continue;
+        for (std::size_t i = 0; i < v.world_mm.size(); ++i) fn(f, k, RigResidual{v.world_mm[i], v.observed_px[i], model});
+      }
+    }
+  };
   auto build = [&](ceres::Problem& problem) -> std::size_t {
     std::size_t residuals = 0;
     for (std::size_t k = 0; k < n_cams; ++k) {
@@ -298,19 +307,11 @@ RigResult calibrate_rig(const std::vector<Observation>& observations, const std:
       problem.AddParameterBlock(blocks[k].intrinsics.data(), kIntrinsics);
       problem.AddParameterBlock(blocks[k].distortion.data(), kDistortion);
     }
-    for (std::size_t f = 0; f < used.size(); ++f) {
-      if (!active[f]) continue;
-      for (std::size_t k = 0; k < n_cams; ++k) {
-        const FrameView& v = used[f].views[k];
-        if (!v.kept) continue;
-        for (std::size_t i = 0; i < v.world_mm.size(); ++i) {
-          problem.AddResidualBlock(new RigCost(new RigResidual{v.world_mm[i], v.observed_px[i], model}), nullptr,
-                                   boards[f].data(), cams[k].q.coeffs().data(), cams[k].t.data(),
-                                   blocks[k].intrinsics.data(), blocks[k].distortion.data());
-          residuals += 2;
-        }
-      }
-    }
+    each_observation([&](std::size_t f, std::size_t k, const RigResidual& r) {
+      problem.AddResidualBlock(new RigCost(new RigResidual(r)), nullptr, boards[f].data(), cams[k].q.coeffs().data(),
+                               cams[k].t.data(), blocks[k].intrinsics.data(), blocks[k].distortion.data());
+      residuals += 2;
+    });
     problem.SetParameterBlockConstant(cams[0].q.coeffs().data());
     problem.SetParameterBlockConstant(cams[0].t.data());
     for (std::size_t k = 0; k < n_cams; ++k) {
@@ -444,21 +445,13 @@ RigResult calibrate_rig(const std::vector<Observation>& observations, const std:
   std::vector<double> camera_rms(n_cams, 0);
   {
     std::vector<double> ss(n_cams, 0), n(n_cams, 0);
-    for (std::size_t f = 0; f < used.size(); ++f) {
-      if (!active[f]) continue;
-      for (std::size_t k = 0; k < n_cams; ++k) {
-        const FrameView& v = used[f].views[k];
-        if (!v.kept) continue;
-        for (std::size_t i = 0; i < v.world_mm.size(); ++i) {
-          const RigResidual r{v.world_mm[i], v.observed_px[i], model};
-          double res[2];
-          r(boards[f].data(), cams[k].q.coeffs().data(), cams[k].t.data(), blocks[k].intrinsics.data(),
-            blocks[k].distortion.data(), res);
-          ss[k] += res[0] * res[0] + res[1] * res[1];
-          n[k] += 1;
-        }
-      }
-    }
+    each_observation([&](std::size_t f, std::size_t k, const RigResidual& r) {
+      double res[2];
+      r(boards[f].data(), cams[k].q.coeffs().data(), cams[k].t.data(), blocks[k].intrinsics.data(),
+        blocks[k].distortion.data(), res);
+      ss[k] += res[0] * res[0] + res[1] * res[1];
+      n[k] += 1;
+    });
     for (std::size_t k = 0; k < n_cams; ++k) camera_rms[k] = n[k] > 0 ? std::sqrt(ss[k] / n[k]) : 0;
   }
   for (std::size_t k = 0; k < n_cams; ++k) {

@@ -13,6 +13,7 @@
 
 #include "formats/camera.hpp"
 #include "formats/camera_bounds.hpp"
+#include "formats/camera_for.hpp"
 #include "formats/error.hpp"
 #include "formats/image.hpp"
 #include "formats/image_decode.hpp"
@@ -159,14 +160,7 @@ MatchInputs read_inputs(Cli& c) {
       camera_sources.push_back(tool::source_name(c.rig) + " (camera_" + std::to_string(k) + ")");
     }
   } else if (!c.camera_for.empty()) {
-    std::set<std::string> seen;
-    for (const std::string& arg : c.camera_for) {
-      const auto eq = arg.find('=');
-      if (eq == std::string::npos || eq == 0 || eq + 1 == arg.size()) {
-        throw UsageError("--camera-for '" + arg + "': expected PREFIX=FILE (e.g. left=left.yaml)");
-      }
-      const std::string prefix = arg.substr(0, eq), file = arg.substr(eq + 1);
-      if (!seen.insert(prefix).second) throw UsageError("--camera-for: prefix '" + prefix + "' given twice");
+    for (const auto& [prefix, file] : parse_camera_for(c.camera_for)) {
       in.cameras_by_prefix.emplace_back(prefix, read_camera_yaml(*tool::open_input(file), tool::source_name(file)));
       camera_sources.push_back(tool::source_name(file));
     }
@@ -187,16 +181,7 @@ MatchInputs read_inputs(Cli& c) {
         std::vector<std::string> prefixes;
         for (const auto& pc : in.cameras_by_prefix) prefixes.push_back(pc.first);
         std::vector<std::vector<Observation>> by_camera(prefixes.size());
-        for (const auto& ob : obs) {
-          const auto m = match_rig_prefix(prefixes, ob.image);
-          if (!m) {
-            std::string list;
-            for (const auto& p : prefixes) list += (list.empty() ? "'" : ", '") + p + "'";
-            throw InputError(tool::source_name(path), 0, "image '" + ob.image + "' starts with none of the cameras' "
-                                                         "prefixes (" + list + "): give its camera");
-          }
-          by_camera[m->camera].push_back(ob);
-        }
+        for (const auto& ob : obs) by_camera[require_rig_prefix(prefixes, ob.image, tool::source_name(path)).camera].push_back(ob);
         for (std::size_t k = 0; k < prefixes.size(); ++k) {
           check_inside_camera_image(by_camera[k], tool::source_name(path), in.cameras_by_prefix[k].second,
                                     camera_sources[k]);

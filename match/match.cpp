@@ -20,6 +20,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/flann.hpp>
 
+#include "formats/camera_for.hpp"
 #include "formats/error.hpp"
 #include "geometry/parallel.hpp"
 
@@ -196,13 +197,7 @@ std::vector<ImageData> load_images(const MatchInputs& in, const MatchOptions& o,
     if (in.camera) {
       data[i].camera = &*in.camera;
     } else if (!prefixes.empty()) {
-      const auto m = match_rig_prefix(prefixes, name);
-      if (!m) {
-        std::string list;
-        for (const auto& p : prefixes) list += (list.empty() ? "'" : ", '") + p + "'";
-        throw InputError(name, 0, "starts with none of the cameras' prefixes (" + list + "): give its camera");
-      }
-      data[i].camera = &in.cameras_by_prefix[m->camera].second;
+      data[i].camera = &in.cameras_by_prefix[require_rig_prefix(prefixes, name, "match's inputs").camera].second;
     }
   }
   for (const auto& ob : in.observations) {

@@ -12,6 +12,7 @@
 
 #include "formats/camera.hpp"
 #include "formats/camera_bounds.hpp"
+#include "formats/camera_for.hpp"
 #include "formats/error.hpp"
 #include "formats/option_checks.hpp"
 #include "formats/text.hpp"
@@ -256,14 +257,7 @@ ReconstructInput read_input(const Cli& c) {
                             tool::source_name(c.rig) + " (camera_" + std::to_string(k) + ")"});
     }
   } else {
-    std::set<std::string> seen;
-    for (const std::string& arg : c.camera_for) {
-      const auto eq = arg.find('=');
-      if (eq == std::string::npos || eq == 0 || eq + 1 == arg.size()) {
-        throw UsageError("--camera-for '" + arg + "': expected PREFIX=FILE (e.g. left=left.yaml)");
-      }
-      const std::string prefix = arg.substr(0, eq), file = arg.substr(eq + 1);
-      if (!seen.insert(prefix).second) throw UsageError("--camera-for: prefix '" + prefix + "' given twice");
+    for (const auto& [prefix, file] : parse_camera_for(c.camera_for)) {
       in.cameras.push_back({prefix, read_camera_yaml(*tool::open_input(file), tool::source_name(file)),
                             tool::source_name(file)});
     }
@@ -275,16 +269,7 @@ ReconstructInput read_input(const Cli& c) {
     std::vector<std::string> prefixes;
     for (const auto& pc : in.cameras) prefixes.push_back(pc.prefix);
     std::vector<std::vector<TrackObservation>> by_camera(in.cameras.size());
-    for (const auto& t : in.tracks) {
-      const auto m = match_rig_prefix(prefixes, t.image);
-      if (!m) {
-        std::string list;
-        for (const auto& p : prefixes) list += (list.empty() ? "'" : ", '") + p + "'";
-        throw InputError(in.tracks_source, 0, "image '" + t.image + "' starts with none of the cameras' prefixes (" +
-                                                  list + "): give its camera");
-      }
-      by_camera[m->camera].push_back(t);
-    }
+    for (const auto& t : in.tracks) by_camera[require_rig_prefix(prefixes, t.image, in.tracks_source).camera].push_back(t);
     for (std::size_t k = 0; k < in.cameras.size(); ++k) {
       check_inside_camera_image(by_camera[k], in.tracks_source, in.cameras[k].camera, in.cameras[k].source);
     }
@@ -293,9 +278,9 @@ ReconstructInput read_input(const Cli& c) {
       std::set<std::string> frames;
       std::map<std::string, std::size_t> image_camera;
       for (const auto& t : in.tracks) {
-        const auto m = match_rig_prefix(prefixes, t.image);
-        frames.insert(m->frame);
-        image_camera[t.image] = m->camera;
+        const RigMatch m = require_rig_prefix(prefixes, t.image, in.tracks_source);
+        frames.insert(m.frame);
+        image_camera[t.image] = m.camera;
       }
       if (frames.size() > 1) {
         throw InputError(in.tracks_source, 0,

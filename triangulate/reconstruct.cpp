@@ -15,6 +15,7 @@
 
 #include <Eigen/Geometry>
 
+#include "formats/camera_for.hpp"
 #include "formats/error.hpp"
 #include "formats/log.hpp"
 #include "formats/text.hpp"
@@ -1032,15 +1033,7 @@ Reconstruction Pipeline::run() {
   scene_ = build_scene(
       input_.tracks, cameras,
       [&](const std::string& image) -> std::size_t {
-        if (prefixes.empty()) return 0;
-        const auto m = match_rig_prefix(prefixes, image);
-        if (!m) {
-          std::string list;
-          for (const auto& p : prefixes) list += (list.empty() ? "'" : ", '") + p + "'";
-          throw InputError(input_.tracks_source, 0, "image '" + image + "' starts with none of the cameras' prefixes (" +
-                                                        list + "): give its camera");
-        }
-        return m->camera;
+        return prefixes.empty() ? 0 : require_rig_prefix(prefixes, image, input_.tracks_source).camera;
       },
       input_.control_points, o_.coded_id_limit, o_.weight_by_feature_size);
   registered_by_.assign(scene_.images.size(), "");
