@@ -50,6 +50,7 @@ struct Outcome {
   ToolResult r;
   std::vector<Observation> observations;  // stdout
   std::size_t features = 0;               // keypoints in the .feat file (with "{feat}")
+  double mean_size_px = 0;                // their mean size
 };
 
 // detect with `args`; "{feat}" becomes a temporary features folder.
@@ -66,7 +67,9 @@ Outcome detect(std::vector<std::string> args) {
   }
   if (feat && run.r.exit_code == 0) {
     std::ifstream in(dir.path() / "feat" / "part.png.feat");
-    run.features = read_features(in, "part.png.feat").keypoints.size();
+    const FeatureSet fs = read_features(in, "part.png.feat");
+    run.features = fs.keypoints.size();
+    for (const auto& k : fs.keypoints) run.mean_size_px += k.size_px / static_cast<double>(run.features);
   }
   return run;
 }
@@ -203,6 +206,15 @@ INSTANTIATE_TEST_SUITE_P(
                      EXPECT_EQ(capped.features, 50u);
                    }},
         bad("preset_unknown", {"--preset", "fast"}, "--preset"),
+        // --cap-order scale: the cap keeps the largest features, not the strongest.
+        OptionCase{"cap_order", {"--features", "{feat}", "--max-features", "50", "--cap-order", "scale", part()}, 0, "",
+                   [](const Outcome& r) {
+                     const Outcome strongest = detect({"--features", "{feat}", "--max-features", "50", part()});
+                     EXPECT_EQ(r.features, 50u);
+                     EXPECT_EQ(strongest.features, 50u);
+                     EXPECT_GT(r.mean_size_px, 1.5 * strongest.mean_size_px) << strongest.mean_size_px;
+                   }},
+        bad("cap_order_unknown", {"--features", "{feat}", "--cap-order", "size", part()}, "--cap-order"),
         OptionCase{"sift_octave_layers", sift({"--sift-octave-layers", "1"}), 0, "",
                    [](const Outcome& r) {
                      EXPECT_GT(r.features, 0u);

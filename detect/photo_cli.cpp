@@ -69,8 +69,15 @@ void add_photo_options(CLI::App& app, PhotoCli& c) {
       ->group(markers);
   app.add_option("--features", c.features_dir, "Write SIFT features, one <image file name>.feat per image, here")
       ->group(features);
-  app.add_option("--max-features", c.sift.max_features, "Strongest SIFT features kept per image (0: all)")
+  app.add_option("--max-features", c.sift.max_features, "SIFT features kept per image, in --cap-order (0: all)")
       ->group(features)->capture_default_str()->check(CLI::Range(0, 10'000'000));
+  app.add_option("--cap-order", c.sift.cap_order,
+                 "Which features --max-features keeps: response (the strongest) or scale (the largest first, "
+                 "as COLMAP does: they match across wider baselines)")
+      ->group(features)
+      ->transform(CLI::CheckedTransformer(std::map<std::string, CapOrder>{{"response", CapOrder::Response},
+                                                                          {"scale", CapOrder::Scale}}))
+      ->default_str("response");
   app.add_option("--cap-cell-px", c.sift.cap_cell_px,
                  "Spread the --max-features cap over square cells of this side: each cell's strongest first, so "
                  "shadowed parts keep features (0: the image's strongest)")

@@ -30,9 +30,9 @@ void validate(const SiftOptions& o) {
 
 namespace {
 
-// The first max_features keypoints of spread_order(all, cap_cell_px).
-std::vector<cv::KeyPoint> spread_cap(const std::vector<cv::KeyPoint>& all, const SiftOptions& o) {
-  const std::vector<std::size_t> order = spread_order(all, o.cap_cell_px);
+// The first max_features keypoints of spread_order(all, cap_cell_px, cap_order).
+std::vector<cv::KeyPoint> cap(const std::vector<cv::KeyPoint>& all, const SiftOptions& o) {
+  const std::vector<std::size_t> order = spread_order(all, o.cap_cell_px, o.cap_order);
   const std::size_t kept = std::min(order.size(), static_cast<std::size_t>(o.max_features));
   std::vector<cv::KeyPoint> keypoints;
   keypoints.reserve(kept);
@@ -48,34 +48,35 @@ FeatureSet detect_sift(const cv::Mat& grey, const std::string& image_name, const
   std::vector<cv::KeyPoint> keypoints;
   cv::Mat descriptors;
   const bool clearance = !mask.empty() && o.mask_clearance_per_size > 0;
-  if (clearance) {
-    // All keypoints, those too near the mask's blanks dropped, then the cap, then descriptors.
-    const auto sift = cv::SIFT::create(0, o.octave_layers, o.contrast_threshold, o.edge_threshold, o.sigma, CV_8U);
-    std::vector<cv::KeyPoint> all;
-    sift->detect(grey, all, mask);
-    // Exact Euclidean distance of every allowed pixel to the nearest blanked one (OpenCV's
-    // DIST_MASK_PRECISE: Felzenszwalb & Huttenlocher 2012, "Distance transforms of sampled functions").
-    cv::Mat clear_px;
-    cv::distanceTransform(mask, clear_px, cv::DIST_L2, cv::DIST_MASK_PRECISE);
-    std::erase_if(all, [&](const cv::KeyPoint& k) {
-      const int x = std::clamp(static_cast<int>(std::lround(k.pt.x)), 0, clear_px.cols - 1);
-      const int y = std::clamp(static_cast<int>(std::lround(k.pt.y)), 0, clear_px.rows - 1);
-      return clear_px.at<float>(y, x) < o.mask_clearance_per_size * k.size;
-    });
-    if (o.max_features > 0 && o.cap_cell_px == 0) cv::KeyPointsFilter::retainBest(all, o.max_features);
-    keypoints = o.max_features > 0 && o.cap_cell_px > 0 ? spread_cap(all, o) : std::move(all);
-    sift->compute(grey, keypoints, descriptors);
-  } else if (o.cap_cell_px == 0 || o.max_features == 0) {
+  const bool opencv_cap = o.max_features == 0 || (o.cap_cell_px == 0 && o.cap_order == CapOrder::Response);
+  if (!clearance && opencv_cap) {
     // OpenCV keeps the `max_features` best by response itself (KeyPointsFilter::retainBest).
     const auto sift = cv::SIFT::create(o.max_features, o.octave_layers, o.contrast_threshold, o.edge_threshold,
                                        o.sigma, CV_8U);
     sift->detectAndCompute(grey, mask, keypoints, descriptors);
   } else {
-    // All keypoints, the cap spread over cells, then descriptors for the kept ones only.
+    // All keypoints, with a clearance those too near the mask's blanks dropped, then the cap,
+    // then descriptors for the kept ones only.
     const auto sift = cv::SIFT::create(0, o.octave_layers, o.contrast_threshold, o.edge_threshold, o.sigma, CV_8U);
     std::vector<cv::KeyPoint> all;
     sift->detect(grey, all, mask);
-    keypoints = spread_cap(all, o);
+    if (clearance) {
+      // Exact Euclidean distance of every allowed pixel to the nearest blanked one (OpenCV's
+      // DIST_MASK_PRECISE: Felzenszwalb & Huttenlocher 2012, "Distance transforms of sampled functions").
+      cv::Mat clear_px;
+      cv::distanceTransform(mask, clear_px, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+      std::erase_if(all, [&](const cv::KeyPoint& k) {
+        const int x = std::clamp(static_cast<int>(std::lround(k.pt.x)), 0, clear_px.cols - 1);
+        const int y = std::clamp(static_cast<int>(std::lround(k.pt.y)), 0, clear_px.rows - 1);
+        return clear_px.at<float>(y, x) < o.mask_clearance_per_size * k.size;
+      });
+    }
+    if (o.max_features > 0 && opencv_cap) {
+      cv::KeyPointsFilter::retainBest(all, o.max_features);
+      keypoints = std::move(all);
+    } else {
+      keypoints = o.max_features > 0 ? cap(all, o) : std::move(all);
+    }
     sift->compute(grey, keypoints, descriptors);
   }
   FeatureSet fs;
@@ -99,13 +100,18 @@ FeatureSet detect_sift(const cv::Mat& grey, const std::string& image_name, const
   return fs;
 }
 
-std::vector<std::size_t> spread_order(const std::vector<cv::KeyPoint>& keypoints, int cell_px) {
+std::vector<std::size_t> spread_order(const std::vector<cv::KeyPoint>& keypoints, int cell_px, CapOrder by) {
   std::vector<std::pair<long, long>> cell(keypoints.size());
-  for (std::size_t k = 0; k < keypoints.size(); ++k) {
+  for (std::size_t k = 0; k < keypoints.size() && cell_px > 0; ++k) {
     cell[k] = {static_cast<long>(std::floor(keypoints[k].pt.x / cell_px)),
                static_cast<long>(std::floor(keypoints[k].pt.y / cell_px))};
   }
-  const auto stronger = [&](std::size_t a, std::size_t b) { return keypoints[a].response > keypoints[b].response; };
+  const auto stronger = [&](std::size_t a, std::size_t b) {
+    const cv::KeyPoint& ka = keypoints[a];
+    const cv::KeyPoint& kb = keypoints[b];
+    if (by == CapOrder::Scale && ka.size != kb.size) return ka.size > kb.size;
+    return ka.response > kb.response;
+  };
   std::vector<std::size_t> by_cell(keypoints.size());
   std::iota(by_cell.begin(), by_cell.end(), std::size_t{0});
   std::stable_sort(by_cell.begin(), by_cell.end(),

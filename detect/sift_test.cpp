@@ -3,7 +3,9 @@
 // order, the marker mask, and the features file round trip.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <functional>
 #include <map>
 #include <random>
 #include <sstream>
@@ -203,6 +205,34 @@ TEST(Sift, OptionsAreChecked) {
   o = {};
   o.mask_clearance_per_size = -0.5;
   EXPECT_THROW(validate(o), UsageError);
+}
+
+// The cap by scale keeps the largest keypoints of all those found (ties by response), each with
+// its descriptor, and spread over cells keeps each cell's largest first.
+TEST(Sift, ScaleCapKeepsTheLargest) {
+  const cv::Mat img = texture(4);
+  SiftOptions o;
+  o.max_features = 0;
+  const FeatureSet all = detect_sift(img, "t", o);
+  ASSERT_GT(all.keypoints.size(), 400u);
+  std::vector<double> sizes;
+  for (const auto& k : all.keypoints) sizes.push_back(k.size_px);
+  std::sort(sizes.begin(), sizes.end(), std::greater<>());
+  o.max_features = 100;
+  o.cap_order = CapOrder::Scale;
+  const FeatureSet largest = detect_sift(img, "t", o);
+  ASSERT_EQ(largest.keypoints.size(), 100u);
+  EXPECT_EQ(largest.descriptors.size(), 100u * 128);
+  for (const auto& k : largest.keypoints) EXPECT_GE(k.size_px, sizes[99]);
+  o.cap_order = CapOrder::Response;
+  const FeatureSet strongest = detect_sift(img, "t", o);
+  std::size_t small = 0;
+  for (const auto& k : strongest.keypoints) small += k.size_px < sizes[99] ? 1 : 0;
+  EXPECT_GT(small, 50u) << "the strongest keypoints should mostly be smaller ones";
+  const auto kp = [](float x, float size, float response) { return cv::KeyPoint(x, 10.f, size, -1.f, response); };
+  const std::vector<cv::KeyPoint> k{kp(10, 3, 0.9f), kp(20, 8, 0.1f), kp(30, 8, 0.2f), kp(150, 4, 0.5f)};
+  EXPECT_EQ(spread_order(k, 0, CapOrder::Scale), (std::vector<std::size_t>{2, 1, 3, 0}));
+  EXPECT_EQ(spread_order(k, 100, CapOrder::Scale), (std::vector<std::size_t>{2, 3, 1, 0}));
 }
 
 // Three cells of 100 px: the first with four strong keypoints, the others with weaker ones.
