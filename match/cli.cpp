@@ -58,6 +58,9 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--ratio", o.ratio, "Lowe's ratio test: best < ratio * second best descriptor distance")
       ->group(feat)->capture_default_str()->check(CLI::Range(0.1, 1.0));
   app.add_flag("--no-mutual", c.no_mutual, "Skip the mutual-best check")->group(feat);
+  app.add_flag("--root-sift", o.root_sift,
+               "Compare RootSIFT descriptors (square root of the L1-normalised SIFT, as COLMAP does)")
+      ->group(feat);
   app.add_flag("!--no-guided", o.guided,
                "With --poses, still search all features by kd-tree instead of along the epipolar lines")
       ->group(feat);

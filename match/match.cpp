@@ -42,6 +42,11 @@ struct ImageData {
   std::vector<int> canonical;
   std::unordered_map<int, std::vector<int>> copies;  // canonical -> all keypoints at its position
   const cv::Mat* grey = nullptr;                     // for least-squares matching
+  std::vector<std::uint8_t> root_descriptors;        // RootSIFT bytes, with MatchOptions::root_sift
+  // The descriptors compared: the file's or the RootSIFT ones.
+  const std::uint8_t* descriptor_bytes() const {
+    return root_descriptors.empty() ? features->descriptors.data() : root_descriptors.data();
+  }
   cv::Mat descriptors;                          // CV_32F, one row per keypoint (kd-tree search only)
   std::unique_ptr<cv::flann::Index> index;      // over `descriptors`
 };
@@ -141,12 +146,12 @@ std::vector<FeatureMatch> match_guided(const ImageData& a, const ImageData& b, c
     const Eigen::Vector3d fa = F * xa.homogeneous();
     const double fa2 = fa.head<2>().squaredNorm();
     if (!(fa2 > 0)) continue;
-    const std::uint8_t* da = a.features->descriptors.data() + static_cast<std::size_t>(i) * static_cast<std::size_t>(dim);
+    const std::uint8_t* da = a.descriptor_bytes() + static_cast<std::size_t>(i) * static_cast<std::size_t>(dim);
     pencil.near(fa, thr, [&](std::size_t j) {
       const Eigen::Vector2d& xb = b.feature_ideal[j];
       const double e = xb.x() * fa.x() + xb.y() * fa.y() + fa.z();
       if (e * e > thr2 * (fa2 + pencil.ftb2(j))) return;
-      const std::uint8_t* db = b.features->descriptors.data() + j * static_cast<std::size_t>(dim);
+      const std::uint8_t* db = b.descriptor_bytes() + j * static_cast<std::size_t>(dim);
       const auto d = static_cast<float>(squared_distance(da, db, dim));
       const int jb = static_cast<int>(j);
       keep_two(a1[static_cast<std::size_t>(i)], a2[static_cast<std::size_t>(i)], abest[static_cast<std::size_t>(i)], d, jb);
@@ -275,6 +280,28 @@ void check_id_collisions(const std::vector<ImageData>& data, const MatchInputs& 
   }
 }
 
+}  // namespace
+
+// RootSIFT (Arandjelovic & Zisserman 2012): each descriptor v divided by its L1 norm, the square
+// root taken of every value (so the result has unit L2 norm), then scaled by 512 and rounded to
+// a byte as SIFT's own descriptors are (COLMAP's FeatureDescriptorsToUnsignedByte uses the same
+// 512; a value over 255 would need one bin to hold a quarter of the L1 mass, and is clamped).
+std::vector<std::uint8_t> root_sift(const std::vector<std::uint8_t>& descriptors, int dim) {
+  std::vector<std::uint8_t> out(descriptors.size());
+  const auto n = static_cast<std::size_t>(dim);
+  for (std::size_t row = 0; row + n <= descriptors.size(); row += n) {
+    double l1 = 0;
+    for (std::size_t k = 0; k < n; ++k) l1 += descriptors[row + k];
+    for (std::size_t k = 0; k < n && l1 > 0; ++k) {
+      const double v = 512.0 * std::sqrt(descriptors[row + k] / l1);
+      out[row + k] = static_cast<std::uint8_t>(std::min(255.0, std::round(v)));
+    }
+  }
+  return out;
+}
+
+namespace {
+
 // Undistorts the coded points and keypoints, finds each keypoint's canonical copy, and indexes the
 // descriptors for FLANN's kd-trees unless matching is guided (in parallel over images).
 void prepare_images(std::vector<ImageData>& data, const MatchOptions& o, bool guided) {
@@ -299,8 +326,9 @@ void prepare_images(std::vector<ImageData>& data, const MatchOptions& o, bool gu
     }
     d.feature_ideal = undistort.apply(kp);
     const int rows = static_cast<int>(d.features->keypoints.size());
+    if (o.root_sift) d.root_descriptors = root_sift(d.features->descriptors, d.features->descriptor_dim);
     if (!guided && rows >= 2) {
-      cv::Mat(rows, d.features->descriptor_dim, CV_8U, const_cast<std::uint8_t*>(d.features->descriptors.data()))
+      cv::Mat(rows, d.features->descriptor_dim, CV_8U, const_cast<std::uint8_t*>(d.descriptor_bytes()))
           .convertTo(d.descriptors, CV_32F);
       // FLANN draws its random trees from OpenCV's thread-local RNG: seed it per image so the
       // trees, hence the matches, do not depend on which thread indexed which image before.

@@ -36,6 +36,10 @@ struct MatchOptions {
   bool mutual = true;        // keep a match only if each feature is the other's best
   int flann_trees = 4;       // randomised kd-trees (FLANN, Muja & Lowe 2009)
   int flann_checks = 32;     // leaves visited per query (64: ~3 % more tracks, twice the time)
+  // Compare RootSIFT descriptors (Arandjelovic & Zisserman 2012, "Three things everyone should
+  // know to improve object retrieval": the square root of the L1-normalised descriptor, so that
+  // Euclidean distance becomes the Hellinger kernel's), as COLMAP does by default.
+  bool root_sift = false;
   // With known poses: compare each feature only with those near its epipolar line (guided
   // matching), instead of kd-tree search over all features.
   bool guided = true;
@@ -111,6 +115,10 @@ struct MatchResult {
 // Throws InputError for inconsistent inputs (features of one image twice, a pose missing for an
 // image, descriptors of different lengths), UsageError for bad options or an id collision with
 // `feature_track_offset`, GeometryError if nothing can be matched (fewer than two images).
+// RootSIFT bytes of `descriptors` (rows of `dim` bytes): 512 sqrt(v / |v|_1), rounded, at most
+// 255; an all-zero row stays zero.
+std::vector<std::uint8_t> root_sift(const std::vector<std::uint8_t>& descriptors, int dim);
+
 MatchResult match(const MatchInputs& inputs, const MatchOptions& options,
                   const std::function<void(const std::string&)>& progress = {});
 

@@ -209,6 +209,16 @@ INSTANTIATE_TEST_SUITE_P(
                      ASSERT_GT(feature_matches(plain_features()), 0) << plain_features().r.err;
                      EXPECT_GT(feature_matches(r), feature_matches(plain_features())) << r.r.err;
                    }},
+        // RootSIFT: other distances, so other matches (kd-tree and guided search alike).
+        OptionCase{"root_sift", features({"--root-sift"}), 0, "",
+                   [](const Outcome& r) {
+                     ASSERT_GT(feature_matches(r), 0) << r.r.err;
+                     EXPECT_NE(feature_matches(r), feature_matches(plain_features())) << r.r.err;
+                     const Outcome guided = match(features({"--poses", "{demo}poses.csv", "--root-sift"}));
+                     const Outcome plain_guided = match(features({"--poses", "{demo}poses.csv"}));
+                     EXPECT_GT(feature_tracks(guided), 0) << guided.r.err;
+                     EXPECT_NE(guided.r.out, plain_guided.r.out);
+                   }},
         OptionCase{"guided_ratio", features({"--poses", "{demo}poses.csv", "--guided-ratio", "0.3"}), 0, "",
                    [](const Outcome& r) {
                      const Outcome wide = match(features({"--poses", "{demo}poses.csv"}));

@@ -15,6 +15,28 @@
 namespace photomill::match {
 namespace {
 
+// RootSIFT bytes: 512 sqrt(v / |v|_1) per value, so each row's squared values sum to ~512^2; a
+// row with one bin of everything clamps at 255; an empty row stays empty.
+TEST(RootSift, ScalesTheSquareRootOfTheL1NormalisedDescriptor) {
+  std::vector<std::uint8_t> d(3 * 4, 0);
+  for (int k = 0; k < 4; ++k) d[static_cast<std::size_t>(k)] = 25;  // row 0: four equal values
+  d[4] = 90, d[5] = 10;                                                 // row 1: 0.9 and 0.1 of the mass
+  const auto r = root_sift(d, 4);
+  ASSERT_EQ(r.size(), d.size());
+  for (int k = 0; k < 4; ++k) EXPECT_EQ(r[static_cast<std::size_t>(k)], 255) << "512 * sqrt(1/4) = 256, clamped";
+  EXPECT_EQ(r[4], 255);                                     // 512 * sqrt(0.9) = 485.7
+  EXPECT_EQ(r[5], static_cast<std::uint8_t>(std::lround(512 * std::sqrt(0.1))));  // 161.9 -> 162
+  EXPECT_EQ(r[6], 0);
+  for (std::size_t k = 8; k < 12; ++k) EXPECT_EQ(r[k], 0);
+  // A SIFT-like row of 128 values: unit L2 norm times 512, to the rounding.
+  std::vector<std::uint8_t> s(128);
+  for (std::size_t k = 0; k < s.size(); ++k) s[k] = static_cast<std::uint8_t>((k * 37) % 97);
+  const auto rs = root_sift(s, 128);
+  double sum2 = 0;
+  for (auto v : rs) sum2 += static_cast<double>(v) * v;
+  EXPECT_NEAR(std::sqrt(sum2), 512, 2);
+}
+
 TEST(BuildTracks, JoinsChainsAndRefusesTwoFeaturesOfOneImage) {
   // a0-b0-c0 chain; c0-a1 would put a0 and a1 (image 0) into one track: refused, the weaker edge.
   const std::vector<MatchEdge> edges{{{0, 0}, {1, 0}, 0.2}, {{1, 0}, {2, 0}, 0.3}, {{2, 0}, {0, 1}, 0.6},
