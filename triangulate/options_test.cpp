@@ -255,6 +255,21 @@ INSTANTIATE_TEST_SUITE_P(
                          << r.report << plain().report;
                    }},
         bad("function_tolerance_zero", {"--function-tolerance", "0"}, "--function-tolerance"),
+        // The adjustments between registrations stop sooner; the final one is as converged.
+        // (Without control points the images are registered one by one, each followed by one.)
+        OptionCase{"intermediate_function_tolerance", Scene::Plain,
+                   {"--arbitrary-scale", "--intermediate-function-tolerance", "0.5"}, 0, "",
+                   [](const Outcome& r) {
+                     const Outcome strict =
+                         triangulate(Scene::Plain, {"--arbitrary-scale", "--intermediate-function-tolerance", "1e-12"});
+                     EXPECT_GT(json_number(r.report, "runs", "bundle_adjustment"), 3) << r.report;
+                     EXPECT_LT(json_number(r.report, "total_iterations", "bundle_adjustment"),
+                               json_number(strict.report, "total_iterations", "bundle_adjustment"))
+                         << r.report;
+                     EXPECT_NEAR(json_number(r.report, "final_rms_px"), json_number(strict.report, "final_rms_px"), 1e-6);
+                   }},
+        bad("intermediate_function_tolerance_zero", {"--intermediate-function-tolerance", "0"},
+            "--intermediate-function-tolerance"),
         // --preset features: all intrinsics refined, 2 outlier rounds, function tolerance 1e-6.
         OptionCase{"preset_features", Scene::Plain, {"--preset", "features"}, 0, "",
                    [](const Outcome& r) {

@@ -71,7 +71,8 @@ private:
   using Sigmas = std::array<double, kObservationClasses>;
   Sigmas robust_sigma_px() const;
   std::vector<double> active_errors(std::vector<std::size_t>* which) const;
-  BundleSummary adjust(const BundleSetup& setup);
+  // One adjustment; function_tolerance: a looser stop than --function-tolerance (intermediate ones).
+  BundleSummary adjust(const BundleSetup& setup, std::optional<double> function_tolerance = std::nullopt);
   void finish(Reconstruction& r);
 
   const ReconstructInput& input_;
@@ -506,7 +507,7 @@ bool Pipeline::register_by_relative_pose(const std::set<std::size_t>& skip) {
   return false;
 }
 
-BundleSummary Pipeline::adjust(const BundleSetup& setup) {
+BundleSummary Pipeline::adjust(const BundleSetup& setup, std::optional<double> function_tolerance) {
   // The work limit: each adjustment may take what is left of --max-total-iterations.
   const long long left = o_.max_total_iterations - iterations_used_;
   const auto over = [&] {
@@ -515,6 +516,7 @@ BundleSummary Pipeline::adjust(const BundleSetup& setup) {
   };
   if (left <= 0) throw over();
   BundleOptions bundle = o_.bundle;
+  if (function_tolerance) bundle.function_tolerance = std::max(bundle.function_tolerance, *function_tolerance);
   bundle.max_iterations = static_cast<int>(std::min<long long>(bundle.max_iterations, left));
   last_ = bundle_adjust(scene_, setup, bundle);
   iterations_used_ += std::max(last_.iterations, 1);
@@ -533,7 +535,7 @@ void Pipeline::intermediate_adjustment() {
   BundleSetup s = setup_;
   s.observation_sigma_px.fill(o_.observation_sigma_px.value_or(1.0));
   s.scale_bars.clear();
-  adjust(s);
+  adjust(s, o_.intermediate_function_tolerance);
   last_ba_registered_ = scene_.registered_count();
   // Gross outliers only; the final adjustment removes the rest.
   for (std::size_t o = 0; o < scene_.observations.size(); ++o) {
@@ -813,6 +815,7 @@ void Pipeline::final_adjustment() {
   }
   report_.observation_sigma_estimated = estimate;
   report_.final_iterations = last_.iterations;
+  report_.total_iterations = static_cast<int>(iterations_used_);
 }
 
 // Two-view points against their neighbours seen in three or more views (two_view.hpp), after

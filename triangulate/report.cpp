@@ -63,6 +63,7 @@ void write_report_json(std::ostream& out, const Report& r) {
   j.key("bundle_adjustment").begin_object();
   j.field("runs", r.adjustments);
   j.field("final_iterations", r.final_iterations);
+  j.field("total_iterations", r.total_iterations);
   j.field("seconds", r.adjustment_seconds);
   j.field("solver", r.solver);
   j.field("loss", r.loss);

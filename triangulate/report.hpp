@@ -95,6 +95,7 @@ struct Report {
   double final_rms_px = 0;          // sqrt(mean |r|^2) over the inlier observations
   int adjustments = 0;              // bundle adjustments run
   int final_iterations = 0;         // Ceres iterations of the last adjustment
+  int total_iterations = 0;         // Ceres iterations of all adjustments (--max-total-iterations counts them)
   double adjustment_seconds = 0;    // time in all bundle adjustments
   double total_seconds = 0;
   std::string solver;
