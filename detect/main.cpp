@@ -9,6 +9,7 @@
 
 #include "detect/board_cli.hpp"
 #include "detect/boards.hpp"
+#include "detect/huge_pages.hpp"
 #include "detect/photo_cli.hpp"
 #include "formats/error.hpp"
 #include "formats/image.hpp"
@@ -28,6 +29,7 @@ int main(int argc, char** argv) {
   detect::BoardSpec spec;
   detect::BoardDetectOptions options;
   detect::PhotoCli photo;  // --aruco, --aruco-dict-file, --features, --draw (detect/photo_cli.hpp)
+  detect::use_huge_pages_for_large_images();  // SIFT's pyramids: fewer page faults and TLB misses
   return tool::run(
       argc, argv,
       {"detect", "find board corners, ArUco markers or SIFT features in images; write observations CSV",

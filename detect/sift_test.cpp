@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <random>
@@ -13,6 +14,7 @@
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "detect/huge_pages.hpp"
 #include "detect/sift.hpp"
 #include "formats/error.hpp"
 
@@ -278,6 +280,31 @@ TEST(Sift, SpreadCapKeepsFeaturesInTheShadow) {
     }
     last[cell] = k.response;
   }
+}
+
+// Large images in huge pages: a large Mat starts on a 2 MiB boundary and holds what is written;
+// a small one still comes from OpenCV's allocator; SIFT finds the same features either way.
+// (Installs the allocator for the rest of this test program.)
+TEST(HugePages, SameFeaturesAndAlignedLargeImages) {
+  cv::Mat big_texture;
+  cv::resize(texture(5), big_texture, cv::Size(), 2, 2, cv::INTER_CUBIC);  // its doubled octave: MBs
+  SiftOptions o;
+  o.max_features = 500;
+  o.cap_order = CapOrder::Scale;
+  const FeatureSet before = detect_sift(big_texture, "t", o);
+  use_huge_pages_for_large_images(std::size_t{1} << 20);
+  use_huge_pages_for_large_images();  // idempotent
+  cv::Mat large(2000, 1000, CV_32F, cv::Scalar(1.5f));
+  EXPECT_EQ(reinterpret_cast<std::uintptr_t>(large.data) % (std::uintptr_t{2} << 20), 0u);
+  large.at<float>(1999, 999) = 7;
+  EXPECT_EQ(cv::sum(large)[0], 1.5 * 2000 * 1000 - 1.5 + 7);
+  cv::Mat view = large(cv::Rect(10, 10, 100, 100)).clone();  // 40 kB: OpenCV's own allocator
+  EXPECT_EQ(view.at<float>(0, 0), 1.5f);
+  large.release();
+  const FeatureSet after = detect_sift(big_texture, "t", o);
+  ASSERT_EQ(after.keypoints.size(), before.keypoints.size());
+  EXPECT_EQ(after.descriptors, before.descriptors);
+  for (std::size_t k = 0; k < after.keypoints.size(); ++k) EXPECT_EQ(after.keypoints[k], before.keypoints[k]);
 }
 
 }  // namespace

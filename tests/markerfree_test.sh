@@ -37,8 +37,10 @@ make -f "$src/Makefile.example" -j"$(nproc)" BIN="$build/bin" MARKERS=0 CAMERA="
 poses=$(grep -c "\.JPG," "$job/poses.csv" || true)
 [ "$poses" -eq 11 ] || fail "$poses of 11 photos oriented"
 points=$(grep -a -m1 "^element vertex" "$job/cloud.ply" | cut -d' ' -f3)
-# Measured 2026-12-04: 3 627 points (COLMAP 3.8 gives 8 050: issue 23 keeps that bound open).
-[ "$points" -ge 3000 ] || fail "$points points in the cloud, expected at least 3000"
+# Issue 23's bound: at least as many points as COLMAP 3.8's mapper makes of these photos (8 072
+# in ../shared/data/README.md; 8 047-8 063 in scripts/bench-sceaux.sh's runs). Measured
+# 2026-12-05: 8 286 (3 627 before detect's cap by scale and match's RootSIFT).
+[ "$points" -ge 8072 ] || fail "$points points in the cloud, fewer than COLMAP's 8072"
 grep -a -q "^comment photomill point cloud, units arbitrary" "$job/cloud.ply" || fail "cloud.ply does not say its scale is arbitrary"
 grep -q '"units":"arbitrary"' "$job/fitsurf.json" || fail "fitsurf.json does not say its units are arbitrary"
 [ -s "$job/surface.txt" ] && [ -s "$job/report.html" ] || fail "no surface.txt or report.html"

@@ -150,7 +150,7 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--function-tolerance", o.bundle.function_tolerance, "Stop when the cost decreases by less (relative)")
       ->check(tool::positive_up_to(1))->capture_default_str()->group(ba);
   app.add_option("--intermediate-function-tolerance", o.intermediate_function_tolerance,
-                 "The same for the adjustments between registrations (the final one uses --function-tolerance)")
+                 "The same for the adjustments between registrations and of the outlier rounds (the last one uses --function-tolerance)")
       ->check(tool::positive_up_to(1))->capture_default_str()->group(ba);
   app.add_option("--covariance-max-parameters", o.covariance.max_reduced_parameters,
                  "Largest reduced camera system inverted for the full point covariance")

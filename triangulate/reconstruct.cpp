@@ -784,10 +784,14 @@ void Pipeline::final_adjustment() {
     for (double v : e) sum += v * v;
     report_.initial_rms_px = e.empty() ? 0 : std::sqrt(sum / static_cast<double>(e.size()));
   }
+  // The adjustments of the outlier rounds stop at the intermediate tolerance (their residuals
+  // only sort inliers from outliers); the last adjustment, with the outliers out, runs to
+  // --function-tolerance.
   for (int round = 1;; ++round) {
     setup_.observation_sigma_px = sigma;
-    adjust(setup_);
-    if (round > o_.outliers.rounds) break;
+    const bool last = round > o_.outliers.rounds;
+    adjust(setup_, last ? std::nullopt : std::optional<double>(o_.intermediate_function_tolerance));
+    if (last) break;
     const Sigmas sigma_hat = robust_sigma_px();
     Sigmas threshold{};
     bool sigma_changed = false;
@@ -811,7 +815,10 @@ void Pipeline::final_adjustment() {
     log::debug("outlier round " + std::to_string(round) + ": thresholds " + fmt(threshold[0]) + " / " +
                fmt(threshold[1]) + " px (coded / natural), removed " + std::to_string(removed) + ", sigma " +
                fmt(sigma[0]) + " / " + fmt(sigma[1]) + " px");
-    if (removed == 0 && !sigma_changed) break;
+    if (removed == 0 && !sigma_changed) {
+      adjust(setup_);  // the same observations and sigmas, to the final tolerance
+      break;
+    }
   }
   report_.observation_sigma_estimated = estimate;
   report_.final_iterations = last_.iterations;

@@ -68,10 +68,10 @@ struct ReconstructOptions {
   // the run (one per registered image, the outlier rounds, the final one). More is an error
   // naming the option, not a run without end; each adjustment gets at most what is left.
   long long max_total_iterations = 50'000;
-  // The adjustments while images are still being registered stop at this relative decrease of
-  // the cost (Ceres' own default), or at bundle.function_tolerance if that is looser: their
-  // result is only the start of the next registration and of the final adjustment, which runs to
-  // bundle.function_tolerance. On the Sceaux castle the incremental adjustments at 1e-10 took
+  // The adjustments while images are still being registered, and those of the outlier rounds,
+  // stop at this relative decrease of the cost (Ceres' own default), or at
+  // bundle.function_tolerance if that is looser: their result is only the start of the next
+  // registration or round; the last adjustment runs to bundle.function_tolerance. On the Sceaux castle the incremental adjustments at 1e-10 took
   // 100 iterations each for no change in the final model (docs/measurements/triangulate.md).
   double intermediate_function_tolerance = 1e-6;
   RansacOptions ransac;
