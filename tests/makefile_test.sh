@@ -54,8 +54,11 @@ grep -q "^cp given.yaml job4/camera.yaml" <<<"$free" || fail "CAMERA= is not cop
   fail "MARKERS=0 still runs a step that needs markers, control points or mm: $(grep -e /calib -e --aruco -e --control-points -e --keep-box -e /toolpath -e /clpost -e /rough <<<"$free" | head -2)"
 n=$(grep -c "^/opt/pm/bin/detect  --features job4/feat .*upper/part_0[0-2]\.JPG *$" <<<"$free" || true)
 [ "$n" -eq 3 ] || fail "expected one features-only detect per photo (3), got $n: $(grep detect <<<"$free" | head -1)"
-grep -q "^/opt/pm/bin/match job4/feat/part_00.JPG.feat job4/feat/part_01.JPG.feat job4/feat/part_02.JPG.feat --camera job4/camera.yaml  -o job4/tracks.csv" <<<"$free" ||
-  fail "MARKERS=0: match is not given every photo's features without poses: $(grep /match <<<"$free")"
+grep -q "^/opt/pm/bin/match job4/feat/part_00.JPG.feat job4/feat/part_01.JPG.feat job4/feat/part_02.JPG.feat --camera job4/camera.yaml --root-sift -o job4/tracks.csv" <<<"$free" ||
+  fail "MARKERS=0: match is not given every photo's features without poses (and --root-sift): $(grep /match <<<"$free")"
+# ... and detect the cap by scale (the largest features, as COLMAP keeps them).
+grep -q "^/opt/pm/bin/detect  --features job4/feat --max-features 11000 --cap-order scale .*upper/part_00\.JPG" <<<"$free" ||
+  fail "MARKERS=0: detect without --max-features 11000 --cap-order scale: $(grep detect <<<"$free" | head -1)"
 grep -q "^/opt/pm/bin/triangulate job4/tracks.csv --camera job4/camera.yaml --arbitrary-scale" <<<"$free" || fail "MARKERS=0: triangulate without --arbitrary-scale"
 grep -q "^/opt/pm/bin/fitsurf job4/cloud.ply" <<<"$free" && grep -q "^/opt/pm/bin/report job4" <<<"$free" || fail "MARKERS=0: no surface or report"
 if out=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="upper/*.JPG" CAMERA=given.yaml MARKERS=0 FEATURES=0 OUT=job4 2>&1); then

@@ -216,8 +216,12 @@ void validate(const PreviewOptions& o) {
 }
 
 std::vector<std::uint8_t> render_preview_png(const PointCloud& cloud, const std::vector<Pose>& poses,
-                                             const Camera& camera, const PreviewOptions& o) {
+                                             const std::vector<Camera>& cameras, const PreviewOptions& o) {
   validate(o);
+  if (cameras.empty() || (cameras.size() != 1 && cameras.size() != poses.size())) {
+    throw UsageError("preview: " + std::to_string(cameras.size()) + " cameras for " + std::to_string(poses.size()) +
+                     " poses (one per pose, or one for all)");
+  }
   std::vector<Eigen::Vector3d> points;
   std::vector<std::size_t> index;  // into the cloud
   for (std::size_t i = 0; i < cloud.points_mm.size(); ++i) {
@@ -243,14 +247,17 @@ std::vector<std::uint8_t> render_preview_png(const PointCloud& cloud, const std:
   for (int k = 0; k < 8; ++k) framing.emplace_back(k & 1 ? hi.x() : lo.x(), k & 2 ? hi.y() : lo.y(), k & 4 ? hi.z() : lo.z());
   const std::vector<Eigen::Vector3d> points_box = framing;
 
-  // Frusta of the cameras near the scene, as deep as an eighth of the box diagonal.
-  const double w = camera.image_width_px > 0 ? camera.image_width_px : 2 * camera.cx();
-  const double h = camera.image_height_px > 0 ? camera.image_height_px : 2 * camera.cy();
-  const Eigen::Matrix3d k_inv = camera.camera_matrix.inverse();
+  // Frusta of the cameras near the scene, as deep as an eighth of the box diagonal, each by its
+  // own camera's image size and K.
   const double depth = diag / 8;
   std::vector<Frustum> frusta;
   std::size_t far_cameras = 0;
-  for (const Pose& pose : poses) {
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const Pose& pose = poses[i];
+    const Camera& camera = cameras[cameras.size() == 1 ? 0 : i];
+    const double w = camera.image_width_px > 0 ? camera.image_width_px : 2 * camera.cx();
+    const double h = camera.image_height_px > 0 ? camera.image_height_px : 2 * camera.cy();
+    const Eigen::Matrix3d k_inv = camera.camera_matrix.inverse();
     const Eigen::Matrix3d world_from_cam = pose.rotation().transpose();
     Frustum f;
     f.name = pose.image.substr(0, pose.image.find_last_of('.'));
@@ -356,7 +363,13 @@ std::vector<std::uint8_t> render_preview_png(const PointCloud& cloud, const std:
 }
 
 void write_preview(std::ostream& out, const Reconstruction& result, const PreviewOptions& options) {
-  const auto png = render_preview_png(make_point_cloud(result), registered_poses(result), result.camera, options);
+  // Each registered image's own camera (in the order registered_poses gives them).
+  std::vector<Camera> cameras;
+  for (const SceneImage& im : result.scene.images) {
+    if (im.registered) cameras.push_back(result.cameras.empty() ? result.camera : result.cameras.at(im.camera));
+  }
+  if (cameras.empty()) cameras.push_back(result.camera);
+  const auto png = render_preview_png(make_point_cloud(result), registered_poses(result), cameras, options);
   out.write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
 }
 

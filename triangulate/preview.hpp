@@ -38,9 +38,14 @@ void validate(const PreviewOptions& options);
 
 // Encoded PNG bytes. `cloud` as make_point_cloud writes it (x y z, reproj_rms_px, sigma_mm,
 // control; a missing property leaves the points grey / unmarked); `poses` of the registered
-// images; `camera` for the frusta. Throws GeometryError for an empty cloud.
+// images; `cameras` for the frusta: one per pose, or one for all. Throws GeometryError for an
+// empty cloud, UsageError for another number of cameras.
 std::vector<std::uint8_t> render_preview_png(const PointCloud& cloud, const std::vector<Pose>& poses,
-                                             const Camera& camera, const PreviewOptions& options = {});
+                                             const std::vector<Camera>& cameras, const PreviewOptions& options = {});
+inline std::vector<std::uint8_t> render_preview_png(const PointCloud& cloud, const std::vector<Pose>& poses,
+                                                    const Camera& camera, const PreviewOptions& options = {}) {
+  return render_preview_png(cloud, poses, std::vector<Camera>{camera}, options);
+}
 
 // Renders the preview of a reconstruction and writes the PNG bytes to `out`.
 void write_preview(std::ostream& out, const Reconstruction& result, const PreviewOptions& options = {});

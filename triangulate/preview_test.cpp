@@ -153,6 +153,27 @@ TEST(Preview, SaysWhenTheScaleIsArbitrary) {
   EXPECT_GT(cv::countNonZero(diff.rowRange(0, legend_top)), 0) << "axes, scale bar and colour bar in units";
 }
 
+// Several cameras: each frustum by its own camera. One pose's camera with half the focal length
+// (a wider frustum) changes the drawing; a camera per pose that are all alike does not; another
+// number of cameras than poses is refused.
+TEST(Preview, DrawsEachFrustumWithItsOwnCamera) {
+  const test::SceneTruth truth = test::make_scene({});
+  const PointCloud cloud = truth_cloud(truth);
+  const cv::Mat one = decode(render_preview_png(cloud, truth.poses, truth.camera));
+  std::vector<Camera> each(truth.poses.size(), truth.camera);
+  const cv::Mat alike = decode(render_preview_png(cloud, truth.poses, each));
+  each[0].camera_matrix(0, 0) *= 0.5;
+  each[0].camera_matrix(1, 1) *= 0.5;
+  const cv::Mat wide = decode(render_preview_png(cloud, truth.poses, each));
+  cv::Mat diff;
+  cv::absdiff(one, alike, diff);
+  EXPECT_EQ(cv::countNonZero(diff.reshape(1)), 0);
+  cv::absdiff(one, wide, diff);
+  EXPECT_GT(cv::countNonZero(diff.reshape(1)), 50) << "the first frustum is drawn wider";
+  each.pop_back();
+  EXPECT_THROW(render_preview_png(cloud, truth.poses, each), UsageError);
+}
+
 TEST(Preview, RefusesAnEmptyCloud) {
   const test::SceneTruth truth = test::make_scene({});
   EXPECT_THROW(render_preview_png(PointCloud{}, truth.poses, truth.camera), GeometryError);

@@ -837,7 +837,10 @@ void Pipeline::check_two_view(Reconstruction& r, const std::vector<std::size_t>&
   tr.neighbours = o.neighbours;
   tr.reach = o.reach;
   tr.sigmas = o.sigmas;
-  tr.tolerance_mm = o.tolerance_mm;
+  // Without a scale a length in mm means nothing: the tolerance is not applied (0) and the
+  // sigma test alone judges; the report's tolerance_mm says 0 and the warning says why.
+  const bool arbitrary = report_.datum == "arbitrary_scale";
+  tr.tolerance_mm = arbitrary ? 0.0 : o.tolerance_mm;
   std::vector<CheckedPoint> pts(scene_.tracks.size());
   // Scale-bar ends took part as bars: judged as control points are (references, never removed).
   std::vector<char> bar_end(scene_.tracks.size(), 0);
@@ -851,6 +854,7 @@ void Pipeline::check_two_view(Reconstruction& r, const std::vector<std::size_t>&
   }
   TwoViewOptions opts = o;
   opts.threads = o_.threads;
+  opts.tolerance_mm = tr.tolerance_mm;
   const TwoViewCheck c = check_two_view_points(pts, opts);
   tr.ran = c.ran;
   tr.reference_points = c.reference_points;
@@ -868,12 +872,16 @@ void Pipeline::check_two_view(Reconstruction& r, const std::vector<std::size_t>&
     tr.removed.push_back({scene_.tracks[t].id, {x.x(), x.y(), x.z()}, reason, c.distance_mm[t], c.allowed_mm[t]});
   }
   if (!tr.removed.empty()) {
+    // Without a scale the lengths are in the model's unit (the first baseline = 1).
     report_.warnings.push_back(
         std::to_string(tr.removed.size()) + " of " + std::to_string(c.checked) + " two-view points removed (" +
         std::to_string(c.unsupported) + " with no point seen in three views within " + fmt(o.reach * c.spacing_mm) +
-        " mm (--two-view-reach), " + std::to_string(c.off_neighbours) +
-        " off their neighbours' surface by more than --two-view-sigmas " + fmt(o.sigmas) + " sigma and --two-view-tolerance-mm " +
-        fmt(o.tolerance_mm) + "); --no-two-view-check keeps them");
+        (arbitrary ? " units of the arbitrary scale" : " mm") + " (--two-view-reach), " +
+        std::to_string(c.off_neighbours) + " off their neighbours' surface by more than --two-view-sigmas " +
+        fmt(o.sigmas) + " sigma" +
+        (arbitrary ? " (--two-view-tolerance-mm not applied: the scale is arbitrary)"
+                   : " and --two-view-tolerance-mm " + fmt(o.tolerance_mm)) +
+        "); --no-two-view-check keeps them");
   }
 }
 
