@@ -6,8 +6,9 @@
 // vertical blur; glibc maps such blocks itself (over its 32 MiB mmap limit) and the kernel's
 // default THP mode on Debian ("madvise") only backs a mapping with huge pages when asked.
 // Measured on one Sceaux photo (detect --max-features 11000 --cap-order scale): 4.5 s user + 2.9 s
-// system in 4 KiB pages, 2.2 s + 3.1 s with huge pages, 12x fewer page faults
-// (docs/measurements/detect.md).
+// system in 4 KiB pages, 2.0 s + 2.7 s with huge pages, 12x fewer page faults
+// (docs/measurements/detect.md). Makefile.example's GLIBC_TUNABLES=glibc.malloc.hugetlb=1 does
+// the same for glibc's blocks; this holds for detect however it is run.
 #pragma once
 
 #include <cstddef>

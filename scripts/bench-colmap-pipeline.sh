@@ -25,17 +25,8 @@ if ! command -v colmap >/dev/null; then
 fi
 cmake --build "$build" --target detect match triangulate -j"$threads" >/dev/null
 
-# timed CMD...: runs CMD, adds its wall and CPU (user + sys) seconds to $wall and $cpu. CPU time
-# is the fairer figure when the machine is shared; both are printed.
-wall=0
-cpu=0
-timed() {
-  /usr/bin/time -f '%e %U %S' -o "$work/time" "$@"
-  read -r w u s < <(tail -n 1 "$work/time")
-  wall=$(awk -v a="$wall" -v b="$w" 'BEGIN { print a + b }')
-  cpu=$(awk -v a="$cpu" -v b="$u" -v c="$s" 'BEGIN { print a + b + c }')
-}
-figures() { printf 'wall %.1f s, CPU %.1f s' "$wall" "$cpu"; }
+# timed CMD... and figures (scripts/timed.sh).
+source scripts/timed.sh
 
 # The demo camera in COLMAP's OPENCV model: fx fy cx cy k1 k2 p1 p2, principal point + 0.5 px
 # (COLMAP puts the centre of the top-left pixel at (0.5, 0.5)). k3 is 0 in the demo.

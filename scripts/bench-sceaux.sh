@@ -22,33 +22,10 @@ threads=2
 detect_opts="--max-features 11000 --cap-order scale"   # Makefile.example's DETECT_FEAT with MARKERS=0
 cmake --build "$build" --target detect match triangulate -j"$threads" > /dev/null
 
-wall=0
-cpu=0
-timed() {
-  /usr/bin/time -f '%e %U %S' -o "$work/time" "$@"
-  read -r w u s < <(tail -n 1 "$work/time")
-  wall=$(awk -v a="$wall" -v b="$w" 'BEGIN { print a + b }')
-  cpu=$(awk -v a="$cpu" -v b="$u" -v c="$s" 'BEGIN { print a + b + c }')
-}
-
-# K.txt: the 3 x 3 K row by row (CRLF lines).
+# timed CMD... (scripts/timed.sh); the published K as a camera.yaml (scripts/camera-from-k.sh).
+source scripts/timed.sh
+scripts/camera-from-k.sh "$data/K.txt" 2832 2128 > "$work/camera.yaml"
 read -r fx _ cx _ fy cy _ < <(tr -s ' \r\n' ' ' < "$data/K.txt"; echo)
-cat > "$work/camera.yaml" <<YAML
-%YAML:1.0
----
-image_width: 2832
-image_height: 2128
-camera_matrix: !!opencv-matrix
-   rows: 3
-   cols: 3
-   dt: d
-   data: [ $fx, 0., $cx, 0., $fy, $cy, 0., 0., 1. ]
-distortion_coefficients: !!opencv-matrix
-   rows: 5
-   cols: 1
-   dt: d
-   data: [ 0., 0., 0., 0., 0. ]
-YAML
 echo "bench-sceaux: $(ls "$data"/*.JPG | wc -l) photos, load average $(cut -d' ' -f1-3 /proc/loadavg)"
 
 if command -v colmap > /dev/null; then

@@ -12,24 +12,8 @@ data=$src/../shared/data/sceaux-castle
 [ -f "$data/K.txt" ] || { echo "markerfree_test: skipped: $data not found" >&2; exit 77; }
 rm -rf "$work"
 mkdir -p "$work"
-# K.txt: the 3 x 3 K of the 2832 x 2128 photos, row by row (no distortion given; CRLF lines).
-read -r fx _ cx _ fy cy _ < <(tr -s ' \r\n' ' ' < "$data/K.txt"; echo)
-cat > "$work/camera.yaml" <<YAML
-%YAML:1.0
----
-image_width: 2832
-image_height: 2128
-camera_matrix: !!opencv-matrix
-   rows: 3
-   cols: 3
-   dt: d
-   data: [ $fx, 0., $cx, 0., $fy, $cy, 0., 0., 1. ]
-distortion_coefficients: !!opencv-matrix
-   rows: 5
-   cols: 1
-   dt: d
-   data: [ 0., 0., 0., 0., 0. ]
-YAML
+# K.txt: the 3 x 3 K of the 2832 x 2128 photos (no distortion given), as a camera.yaml.
+"$src/scripts/camera-from-k.sh" "$data/K.txt" 2832 2128 > "$work/camera.yaml"
 job=$work/job
 make -f "$src/Makefile.example" -j"$(nproc)" BIN="$build/bin" MARKERS=0 CAMERA="$work/camera.yaml" \
      PHOTOS="$data/*.JPG" OUT="$job" >"$work/make.log" 2>&1 ||
