@@ -4,7 +4,6 @@
 #include <sys/mman.h>
 
 #include <cstdint>
-#include <new>
 
 #include <opencv2/core.hpp>
 

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <optional>
@@ -112,13 +113,13 @@ struct MatchResult {
   std::size_t refine_tracks_dropped = 0;  // fell below the minimum length
 };
 
-// Throws InputError for inconsistent inputs (features of one image twice, a pose missing for an
-// image, descriptors of different lengths), UsageError for bad options or an id collision with
-// `feature_track_offset`, GeometryError if nothing can be matched (fewer than two images).
 // RootSIFT bytes of `descriptors` (rows of `dim` bytes): 512 sqrt(v / |v|_1), rounded, at most
 // 255; an all-zero row stays zero.
 std::vector<std::uint8_t> root_sift(const std::vector<std::uint8_t>& descriptors, int dim);
 
+// Throws InputError for inconsistent inputs (features of one image twice, a pose missing for an
+// image, descriptors of different lengths), UsageError for bad options or an id collision with
+// `feature_track_offset`, GeometryError if nothing can be matched (fewer than two images).
 MatchResult match(const MatchInputs& inputs, const MatchOptions& options,
                   const std::function<void(const std::string&)>& progress = {});
 
