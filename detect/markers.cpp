@@ -86,16 +86,17 @@ struct Footprint {
 };
 constexpr double kMinTrapezoid = 0.05;  // below this b the unit box is exact to ~1e-4 px
 
-Response edge_response(double x, double sigma, const Footprint& fp) {
+// `inv_sigma` = 1 / sigma (the callers evaluate many x for one sigma).
+Response edge_response(double x, double sigma, double inv_sigma, const Footprint& fp) {
   const double h1 = fp.b < kMinTrapezoid ? 0.5 : 0.5 * (fp.a + fp.b);
   // Beyond 8.5 sigma Phi is 0 or 1 to 1e-17: the pixel is plain white or black.
-  if ((x - h1) / sigma > 8.5) return {1, 0, 0};
-  if ((x + h1) / sigma < -8.5) return {0, 0, 0};
+  if ((x - h1) * inv_sigma > 8.5) return {1, 0, 0};
+  if ((x + h1) * inv_sigma < -8.5) return {0, 0, 0};
   const NormalTable& normal = normal_table();
   if (fp.b < kMinTrapezoid) {
     double cp, cm, pp, pm;
-    normal((x + 0.5) / sigma, cp, pp);
-    normal((x - 0.5) / sigma, cm, pm);
+    normal((x + 0.5) * inv_sigma, cp, pp);
+    normal((x - 0.5) * inv_sigma, cm, pm);
     return {(x + 0.5) * cp + sigma * pp - (x - 0.5) * cm - sigma * pm, cp - cm, pp - pm};
   }
   const double h2 = 0.5 * (fp.a - fp.b);
@@ -105,13 +106,13 @@ Response edge_response(double x, double sigma, const Footprint& fp) {
   for (int k = 0; k < 4; ++k) {
     const double u = x + offsets[k];
     double cdf, pdf;
-    normal(u / sigma, cdf, pdf);
+    normal(u * inv_sigma, cdf, pdf);
     g0 += signs[k] * cdf;
     g1 += signs[k] * (u * cdf + sigma * pdf);
     g2 += signs[k] * (0.5 * (u * u + sigma * sigma) * cdf + 0.5 * u * sigma * pdf);
   }
-  const double ab = fp.a * fp.b;
-  return {g2 / ab, g1 / ab, sigma * g0 / ab};
+  const double inv_ab = 1 / (fp.a * fp.b);
+  return {g2 * inv_ab, g1 * inv_ab, sigma * g0 * inv_ab};
 }
 
 // One edge of the initial quadrilateral: t along it from `origin`, s across it, outwards.
@@ -169,9 +170,7 @@ std::vector<Sample> band_samples(const cv::Mat& grey, const Levels& levels, cons
                                  double delta) {
   double reach = w;
   if (curve) {
-    for (double tau : {t0 / e.length - 0.5, 0.5 * (t0 + t1) / e.length - 0.5, t1 / e.length - 0.5}) {
-      reach = std::max(reach, w + std::abs(curve->f(tau)));
-    }
+    for (double t : {t0, 0.5 * (t0 + t1), t1}) reach = std::max(reach, w + std::abs(curve->g(e.origin + t * e.d)));
   }
   double x_lo = 1e300, x_hi = -1e300, y_lo = 1e300, y_hi = -1e300;
   for (double t : {t0, t1}) {
@@ -184,6 +183,7 @@ std::vector<Sample> band_samples(const cv::Mat& grey, const Levels& levels, cons
   const int c0 = std::max(0, static_cast<int>(std::floor(x_lo))), c1 = std::min(grey.cols - 1, static_cast<int>(std::ceil(x_hi)));
   const int r0 = std::max(0, static_cast<int>(std::floor(y_lo))), r1 = std::min(grey.rows - 1, static_cast<int>(std::ceil(y_hi)));
   std::vector<Sample> out;
+  out.reserve(static_cast<std::size_t>(r1 - r0 + 1) * static_cast<std::size_t>(c1 - c0 + 1));
   for (int y = r0; y <= r1; ++y) {
     const auto* row = grey.ptr<std::uint8_t>(y);
     for (int x = c0; x <= c1; ++x) {
@@ -193,7 +193,7 @@ std::vector<Sample> band_samples(const cv::Mat& grey, const Levels& levels, cons
       if (t < t0 || t > t1) continue;
       const double tau = t / e.length - 0.5;
       const double s = e.n.dot(q);
-      const double across = s - (curve ? curve->f(tau) : 0.0);
+      const double across = curve ? curve->g(p) : s;
       if (std::abs(across) > w) continue;
       if (across < delta && (neighbours[0].inward.dot(p - neighbours[0].corner) < delta ||
                              neighbours[1].inward.dot(p - neighbours[1].corner) < delta)) {
@@ -209,10 +209,10 @@ std::vector<Sample> band_samples(const cv::Mat& grey, const Levels& levels, cons
 // Shading: a = a0 + a1 tau + a2 s, b = b0 + b1 tau + b2 s (s in px): on a curved part the light
 // changes along and across the edge, and an unmodelled slope across it would shift the edge.
 template <int NC, typename Vec>
-double model_value(const Vec& p, const Sample& smp, const Footprint& fp, Response* out = nullptr) {
+double model_value(const Vec& p, double inv_sigma, const Sample& smp, const Footprint& fp, Response* out = nullptr) {
   double f = 0;
   for (int j = NC - 1; j >= 0; --j) f = f * smp.tau + p[j];
-  const Response resp = edge_response(smp.s - f, p[NC], fp);
+  const Response resp = edge_response(smp.s - f, p[NC], inv_sigma, fp);
   if (out) *out = resp;
   const double a = p[NC + 1] + p[NC + 2] * smp.tau + p[NC + 3] * smp.s;
   const double b = p[NC + 4] + p[NC + 5] * smp.tau + p[NC + 6] * smp.s;
@@ -232,6 +232,8 @@ double model_value(const Vec& p, const Sample& smp, const Footprint& fp, Respons
 struct ModelFit {
   bool ok = false;
   double top_z = 0;
+  Eigen::MatrixXd normal;  // J^T J at the solution
+  double cost = 0;         // sum of squared residuals there
 };
 
 template <int NC>
@@ -243,40 +245,39 @@ ModelFit fit_edge_model(const std::vector<Sample>& samples, const Footprint& fp,
   // The model's responses at every sample for parameters p, into `out`; returns the cost.
   auto responses = [&](const Vec& p, std::vector<Response>& out) {
     double cost = 0;
+    const double inv_sigma = 1 / p[NC];
     for (std::size_t i = 0; i < samples.size(); ++i) {
-      const double r = samples[i].value - model_value<NC>(p, samples[i], fp, &out[i]);
+      const double r = samples[i].value - model_value<NC>(p, inv_sigma, samples[i], fp, &out[i]);
       cost += r * r;
     }
     return cost;
   };
-  // J^T J and J^T r at p from its responses `rs` (J^T J summed in its lower triangle, then
-  // mirrored: the same sums as the full outer products').
+  // J^T J and J^T r at p from its responses `rs`: the rows of J into `J_rows` (N x P), then one
+  // symmetric rank update and one matrix-vector product (Eigen's blocked, vectorised kernels).
+  Eigen::Matrix<double, Eigen::Dynamic, P> J_rows(static_cast<Eigen::Index>(samples.size()), P);
+  Eigen::VectorXd residuals(static_cast<Eigen::Index>(samples.size()));
   auto normal = [&](const Vec& p, const std::vector<Response>& rs, Mat& JtJ, Vec& Jtr) {
-    Mat A = Mat::Zero();
-    Vec g = Vec::Zero();
-    Vec row;
     for (std::size_t i = 0; i < samples.size(); ++i) {
       const Sample& smp = samples[i];
       const Response& resp = rs[i];
+      const auto row_index = static_cast<Eigen::Index>(i);
       const double a = p[NC + 1] + p[NC + 2] * smp.tau + p[NC + 3] * smp.s;
       const double b = p[NC + 4] + p[NC + 5] * smp.tau + p[NC + 6] * smp.s;
-      const double r = smp.value - (a + b * resp.r);
+      residuals[row_index] = smp.value - (a + b * resp.r);
       double tj = 1;
-      for (int j = 0; j < NC; ++j, tj *= smp.tau) row[j] = -b * resp.dr_dx * tj;
-      row[NC] = b * resp.dr_dsigma;
-      row[NC + 1] = 1;
-      row[NC + 2] = smp.tau;
-      row[NC + 3] = smp.s;
-      row[NC + 4] = resp.r;
-      row[NC + 5] = smp.tau * resp.r;
-      row[NC + 6] = smp.s * resp.r;
-      for (int c = 0; c < P; ++c) {
-        for (int k = c; k < P; ++k) A(k, c) += row[k] * row[c];
-      }
-      g += r * row;
+      for (int j = 0; j < NC; ++j, tj *= smp.tau) J_rows(row_index, j) = -b * resp.dr_dx * tj;
+      J_rows(row_index, NC) = b * resp.dr_dsigma;
+      J_rows(row_index, NC + 1) = 1;
+      J_rows(row_index, NC + 2) = smp.tau;
+      J_rows(row_index, NC + 3) = smp.s;
+      J_rows(row_index, NC + 4) = resp.r;
+      J_rows(row_index, NC + 5) = smp.tau * resp.r;
+      J_rows(row_index, NC + 6) = smp.s * resp.r;
     }
-    JtJ = A.template selfadjointView<Eigen::Lower>();
-    Jtr = g;
+    JtJ.setZero();
+    JtJ.template selfadjointView<Eigen::Lower>().rankUpdate(J_rows.transpose());
+    JtJ = JtJ.template selfadjointView<Eigen::Lower>();
+    Jtr.noalias() = J_rows.transpose() * residuals;
   };
   // The responses at x are kept, so an accepted trial's are not computed again for its J.
   std::vector<Response> at_x(samples.size()), at_trial(samples.size());
@@ -287,12 +288,37 @@ ModelFit fit_edge_model(const std::vector<Sample>& samples, const Footprint& fp,
   normal(x, at_x, JtJ, Jtr);
   bool normal_current = true;  // JtJ and Jtr are those of x
   double lambda = 1e-3;
-  bool improved = false;
+  bool improved = false, converged = false;
+  // How far a step moves the curve: |df(tau)| <= sum_j |dc_j| 2^-j over tau in [-1/2, 1/2].
+  auto curve_movement = [](const Vec& step) {
+    double m = 0;
+    for (int j = 0; j < NC; ++j) m += std::abs(step[j]) * std::ldexp(1.0, -j);
+    return m;
+  };
   for (int it = 0; it < max_iterations; ++it) {
     Mat A = JtJ;
     A.diagonal() += lambda * JtJ.diagonal().cwiseMax(1e-12);
-    const Vec dx = A.ldlt().solve(Jtr);
+    Vec dx = A.ldlt().solve(Jtr);
     if (!dx.allFinite()) break;
+    // A step that takes sigma out of its range [kMinSigmaPx, 2 max_sigma]: sigma's step is set
+    // to reach the bound and the others solved for given it (the bound is active). Clamping
+    // sigma after an unconstrained solve instead leaves the other parameters' step wrong, the
+    // trial fails, and lambda grows until the step is nothing.
+    const double sigma_to = std::clamp(x[NC] + dx[NC], kMinSigmaPx, max_sigma * 2);
+    if (sigma_to != x[NC] + dx[NC]) {
+      const double fixed = sigma_to - x[NC];
+      Vec rhs = Jtr - A.col(NC) * fixed;
+      A.row(NC).setZero();
+      A.col(NC).setZero();
+      A(NC, NC) = 1;
+      rhs[NC] = fixed;
+      dx = A.ldlt().solve(rhs);
+      if (!dx.allFinite()) break;
+    }
+    if (curve_movement(dx) < tolerance_px && std::abs(dx[NC]) < tolerance_px) {
+      converged = true;  // x is a solution already (a start from a converged fit)
+      break;
+    }
     Vec trial = x + dx;
     trial[NC] = std::clamp(trial[NC], kMinSigmaPx, max_sigma * 2);
     const double trial_cost = responses(trial, at_trial);
@@ -304,10 +330,7 @@ ModelFit fit_edge_model(const std::vector<Sample>& samples, const Footprint& fp,
       normal_current = false;
       improved = true;
       lambda = std::max(lambda / 3, 1e-9);
-      // |df(tau)| <= sum_j |dc_j| 2^-j over tau in [-1/2, 1/2].
-      double curve_step = 0;
-      for (int j = 0; j < NC; ++j) curve_step += std::abs(step[j]) * std::ldexp(1.0, -j);
-      if (curve_step < tolerance_px && std::abs(step[NC]) < tolerance_px) break;
+      if (curve_movement(step) < tolerance_px && std::abs(step[NC]) < tolerance_px) break;
       normal(x, at_x, JtJ, Jtr);
       normal_current = true;
     } else {
@@ -318,7 +341,9 @@ ModelFit fit_edge_model(const std::vector<Sample>& samples, const Footprint& fp,
   if (!normal_current) normal(x, at_x, JtJ, Jtr);
   x_io = x;
   ModelFit result;
-  result.ok = improved || cost == 0;
+  result.ok = improved || converged || cost == 0;
+  result.normal = JtJ;
+  result.cost = cost;
   const double dof = static_cast<double>(samples.size()) - P;
   const double var = JtJ.inverse()(NC - 1, NC - 1) * cost / std::max(1.0, dof);
   result.top_z = var > 0 ? std::abs(x[NC - 1]) / std::sqrt(var) : 0;
@@ -329,8 +354,9 @@ ModelFit fit_edge_model(const std::vector<Sample>& samples, const Footprint& fp,
 template <int NC>
 double model_rms(const std::vector<Sample>& samples, const Footprint& fp, const Eigen::VectorXd& x) {
   double sum_sq = 0;
+  const double inv_sigma = 1 / x[NC];
   for (const Sample& smp : samples) {
-    const double r = smp.value - model_value<NC>(x, smp, fp);
+    const double r = smp.value - model_value<NC>(x, inv_sigma, smp, fp);
     sum_sq += r * r;
   }
   return std::sqrt(sum_sq / static_cast<double>(samples.size()));
@@ -353,21 +379,50 @@ ModelFit fit_edge_model(const std::vector<Sample>& samples, const Footprint& fp,
   }
 }
 
+// Lowers the degree of a converged fit without fitting again. With H = J^T J at the solution x^,
+// the Gauss-Newton model of the cost, cost^ + (x - x^)^T H (x - x^), is least under c_D = 0 at
+//   x_r = x^_r + H_rr^-1 H_rD c_D  (r: the other parameters),  cost = cost^ + c_D^2 / [H^-1]_DD,
+// and H_rr is the lower-degree problem's H: exact for a model linear in x, a close start for this
+// one. Drops c_D while it is below `significance` standard errors (ModelFit::top_z, with
+// s^2 = cost / (n - P)); returns the new degree, x shortened to match.
+int drop_insignificant_degrees(Eigen::VectorXd& x, int degree, Eigen::MatrixXd H, double cost, double n,
+                               double significance) {
+  while (degree > 1) {
+    const Eigen::MatrixXd H_inv = H.inverse();
+    const double var = H_inv(degree, degree) * cost / std::max(1.0, n - static_cast<double>(x.size()));
+    if (!(var > 0) || std::abs(x[degree]) / std::sqrt(var) >= significance) break;
+    std::vector<int> rest;
+    for (int k = 0; k < static_cast<int>(x.size()); ++k) {
+      if (k != degree) rest.push_back(k);
+    }
+    const Eigen::MatrixXd H_rr = H(rest, rest);
+    const Eigen::VectorXd shift = H_rr.ldlt().solve(H(rest, degree) * x[degree]);
+    cost += x[degree] * x[degree] / H_inv(degree, degree);
+    const Eigen::VectorXd lower = x(rest) + shift;
+    x = lower;
+    H = H_rr;
+    --degree;
+  }
+  return degree;
+}
+
 struct EdgeFitResult {
   std::optional<EdgeCurve> curve;
   std::string failure;
 };
 
 // Fits one edge over t in [lo, hi] with band half-width w (`check`: refuse a fit that fails the
-// contrast, blur and residual limits): a first fit on a band around the
-// straight edge between the given corners, then (rounds = 2) one on a band that follows the
-// fitted curve. The neighbouring edges are kept out by delta = 3 sigma + 3/4 (the blur and the
+// contrast, blur and residual limits): a first fit on a band around the straight edge between the
+// given corners, then (rounds = 2) one on a band that follows the fitted curve. The neighbouring edges are kept out by delta = 3 sigma + 3/4 (the blur and the
 // pixel's half diagonal) plus `corner_error_px`, the uncertainty of the corners the neighbours
 // are drawn through. The polynomial degree is at most L / options.min_px_per_degree for a stretch
-// of L px: a cubic fitted to a few pixels extrapolates badly.
+// of L px: a cubic fitted to a few pixels extrapolates badly. `final_pass`: the last round runs to
+// options.tolerance_px; otherwise (a coarse pass that only places the next one's frames) every
+// round stops at 10x the tolerance. Either way the last round lowers the degree while its top
+// coefficient is not significant.
 EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFrame& frame, double lo, double hi,
                        const std::array<NeighbourEdge, 2>& neighbours, double w, int rounds, double corner_error_px,
-                       bool check, const EdgeFitOptions& o) {
+                       bool check, bool final_pass, const EdgeFitOptions& o) {
   EdgeCurve curve;
   curve.frame = frame;
   const Footprint footprint = Footprint::across(frame.n);
@@ -403,28 +458,38 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFram
       x[degree + 2] = dark;
       x[degree + 5] = *hi_it - dark;
     }
-    auto fit = [&] {
-      // The first round only places the band: a coarse tolerance will do.
-      const double tolerance = round == 0 ? 10 * o.tolerance_px : o.tolerance_px;
-      const ModelFit f = fit_edge_model(samples, footprint, degree, o.max_iterations, o.max_blur_px, tolerance, x);
-      return f.ok && x.allFinite() ? std::optional<ModelFit>(f) : std::nullopt;
-    };
-    auto result = fit();
+    const bool last = final_pass && round == rounds - 1;
+    // The rounds before the last only place the band (or the next pass): a coarse tolerance will do.
+    const double tolerance = last ? o.tolerance_px : 10 * o.tolerance_px;
+    ModelFit fitted = fit_edge_model(samples, footprint, degree, o.max_iterations, o.max_blur_px, tolerance, x);
+    const std::optional<ModelFit> result = fitted.ok && x.allFinite() ? std::optional<ModelFit>(std::move(fitted)) : std::nullopt;
     if (!result) return {std::nullopt, "edge fit did not converge"};
-    // Occam's razor on the final band: drop the highest curve coefficient while it is not
-    // significant, so straight edges are not fitted with wiggles that extrapolate badly.
-    while (round == rounds - 1 && degree > 1 && result->top_z < o.degree_significance) {
-      Eigen::VectorXd lower(x.size() - 1);
-      lower << x.head(degree), x.tail(7);
-      x = lower;
-      --degree;
-      result = fit();
-      if (!result) return {std::nullopt, "edge fit did not converge"};
+    // The fit's RMS residual (its cost is the sum of squares at x).
+    curve.rms = std::sqrt(result->cost / static_cast<double>(samples.size()));
+    // Occam's razor on each pass's last band: drop the highest curve coefficient while it is not
+    // significant, so straight edges are not fitted with wiggles that extrapolate badly. The
+    // degrees are dropped at once on the linearised solution (drop_insignificant_degrees); the
+    // final pass then fits the lower degree again from there (one or two iterations), the coarse
+    // pass keeps it.
+    if (round == rounds - 1 && degree > 1 && result->top_z < o.degree_significance) {
+      const int lowered = drop_insignificant_degrees(x, degree, result->normal, result->cost,
+                                                     static_cast<double>(samples.size()), o.degree_significance);
+      if (lowered < degree) {
+        degree = lowered;
+        // The linearised shift may take sigma out of the range a fit keeps it in.
+        x[degree + 1] = std::clamp(x[degree + 1], kMinSigmaPx, 2 * o.max_blur_px);
+        if (last) {
+          const ModelFit again = fit_edge_model(samples, footprint, degree, o.max_iterations, o.max_blur_px, tolerance, x);
+          if (!again.ok || !x.allFinite()) return {std::nullopt, "edge fit did not converge"};
+          curve.rms = std::sqrt(again.cost / static_cast<double>(samples.size()));
+        } else {
+          curve.rms = model_rms(samples, footprint, degree, x);
+        }
+      }
     }
     curve.c = x.head(degree + 1);
     sigma = curve.sigma = x[degree + 1];
     curve.contrast = x[degree + 5];
-    curve.rms = model_rms(samples, footprint, degree, x);
     band_curve = &curve;
   }
   if (!check) return {curve, ""};
@@ -545,10 +610,10 @@ std::vector<Observation> MarkerDetection::observations() const {
 namespace {
 
 // One pass of the refinement from corners q: frames, bands and neighbours drawn through q, whose
-// corners are uncertain by `corner_error_px`; corners = intersections of the fitted edges. Only
-// the final pass `check`s the fits against the limits.
+// corners are uncertain by `corner_error_px`; corners = intersections of the fitted edges.
+// `final_pass` as fit_edge takes it.
 EdgeFit refine_pass(const cv::Mat& grey, const Levels& levels, const std::array<Eigen::Vector2d, 4>& q, int cells,
-                    int rounds, double corner_error_px, bool check, const EdgeFitOptions& o) {
+                    int rounds, double corner_error_px, bool final_pass, const EdgeFitOptions& o) {
   EdgeFit result;
   result.corners = q;
   const Eigen::Vector2d centre = 0.25 * (q[0] + q[1] + q[2] + q[3]);
@@ -605,17 +670,18 @@ EdgeFit refine_pass(const cv::Mat& grey, const Levels& levels, const std::array<
     const std::array<NeighbourEdge, 2> nb{NeighbourEdge{q[e], inward(e, (e + 3) % 4), sin_angle[e]},
                                           NeighbourEdge{q[(e + 1) % 4], inward((e + 1) % 4, (e + 2) % 4),
                                                         sin_angle[(e + 1) % 4]}};
+    auto fit = [&](double lo, double hi) {
+      return take(fit_edge(grey, levels, frames[e], lo, hi, nb, window[e], rounds, corner_error_px, true, final_pass, o));
+    };
     if (o.span >= 1) {
-      const auto curve = take(fit_edge(grey, levels, frames[e], 0, L, nb, window[e], rounds, corner_error_px, check, o));
+      const auto curve = fit(0, L);
       ++n_fits;
       if (!curve) return result;
       fits[e][1] = curve;
       fits[(e + 1) % 4][0] = curve;
     } else {
-      const auto first =
-          take(fit_edge(grey, levels, frames[e], 0, o.span * L, nb, window[e], rounds, corner_error_px, check, o));
-      const auto second = take(
-          fit_edge(grey, levels, frames[e], (1 - o.span) * L, L, nb, window[e], rounds, corner_error_px, check, o));
+      const auto first = fit(0, o.span * L);
+      const auto second = fit((1 - o.span) * L, L);
       n_fits += 2;
       if (!first || !second) return result;
       fits[e][1] = first;
@@ -645,11 +711,11 @@ EdgeFit refine_marker_corners(const cv::Mat& grey, const std::array<Eigen::Vecto
   }
   Levels levels;
   for (int v = 0; v < 256; ++v) levels[static_cast<std::size_t>(v)] = 255 * std::pow(v / 255.0, o.gamma);
-  // A coarse pass from OpenCV's polygon (its corners off by up to ~1 px), then the fine pass with
-  // frames, bands and neighbours drawn through the coarse corners. If the coarse pass fails (a
-  // small marker leaves too little edge clear of its uncertain corners), the fine pass starts
-  // from OpenCV's corners with their uncertainty.
-  const EdgeFit coarse = refine_pass(grey, levels, q, cells, 1, o.initial_corner_error_px, true, o);
+  // A coarse pass from OpenCV's polygon (its corners off by up to ~1 px; one round, at 10x the
+  // tolerance), then the fine pass with frames, bands and neighbours drawn through the coarse
+  // corners. If the coarse pass fails (a small marker leaves too little edge clear of its
+  // uncertain corners), the fine pass starts from OpenCV's corners with their uncertainty.
+  const EdgeFit coarse = refine_pass(grey, levels, q, cells, 1, o.initial_corner_error_px, false, o);
   EdgeFit fine = coarse.ok ? refine_pass(grey, levels, coarse.corners, cells, 2, 0, true, o)
                            : refine_pass(grey, levels, q, cells, 2, o.initial_corner_error_px, true, o);
   if (!fine.ok) return fine;
