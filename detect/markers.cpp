@@ -234,6 +234,7 @@ struct ModelFit {
   double top_z = 0;
   Eigen::MatrixXd normal;  // J^T J at the solution
   double cost = 0;         // sum of squared residuals there
+  int iterations = 0;      // Levenberg-Marquardt iterations, rejected trials included
 };
 
 template <int NC>
@@ -295,7 +296,8 @@ ModelFit fit_edge_model(const std::vector<Sample>& samples, const Footprint& fp,
     for (int j = 0; j < NC; ++j) m += std::abs(step[j]) * std::ldexp(1.0, -j);
     return m;
   };
-  for (int it = 0; it < max_iterations; ++it) {
+  int iterations = 0;
+  for (int it = 0; it < max_iterations; ++it, ++iterations) {
     Mat A = JtJ;
     A.diagonal() += lambda * JtJ.diagonal().cwiseMax(1e-12);
     Vec dx = A.ldlt().solve(Jtr);
@@ -344,6 +346,7 @@ ModelFit fit_edge_model(const std::vector<Sample>& samples, const Footprint& fp,
   result.ok = improved || converged || cost == 0;
   result.normal = JtJ;
   result.cost = cost;
+  result.iterations = iterations;
   const double dof = static_cast<double>(samples.size()) - P;
   const double var = JtJ.inverse()(NC - 1, NC - 1) * cost / std::max(1.0, dof);
   result.top_z = var > 0 ? std::abs(x[NC - 1]) / std::sqrt(var) : 0;
@@ -409,6 +412,7 @@ int drop_insignificant_degrees(Eigen::VectorXd& x, int degree, Eigen::MatrixXd H
 struct EdgeFitResult {
   std::optional<EdgeCurve> curve;
   std::string failure;
+  int iterations = 0;  // of every fit made for this edge
 };
 
 // Fits one edge over t in [lo, hi] with band half-width w (`check`: refuse a fit that fails the
@@ -430,6 +434,7 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFram
   Eigen::VectorXd x;
   const EdgeCurve* band_curve = nullptr;
   double sigma = o.initial_blur_px;
+  int iterations = 0;
   for (int round = 0; round < rounds; ++round) {
     const double delta = 3 * sigma + 0.75 + corner_error_px;
     // The transition is clear of the neighbours from delta / sin(alpha) on.
@@ -462,6 +467,7 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFram
     // The rounds before the last only place the band (or the next pass): a coarse tolerance will do.
     const double tolerance = last ? o.tolerance_px : 10 * o.tolerance_px;
     ModelFit fitted = fit_edge_model(samples, footprint, degree, o.max_iterations, o.max_blur_px, tolerance, x);
+    iterations += fitted.iterations;
     const std::optional<ModelFit> result = fitted.ok && x.allFinite() ? std::optional<ModelFit>(std::move(fitted)) : std::nullopt;
     if (!result) return {std::nullopt, "edge fit did not converge"};
     // The fit's RMS residual (its cost is the sum of squares at x).
@@ -480,6 +486,7 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFram
         x[degree + 1] = std::clamp(x[degree + 1], kMinSigmaPx, 2 * o.max_blur_px);
         if (last) {
           const ModelFit again = fit_edge_model(samples, footprint, degree, o.max_iterations, o.max_blur_px, tolerance, x);
+          iterations += again.iterations;
           if (!again.ok || !x.allFinite()) return {std::nullopt, "edge fit did not converge"};
           curve.rms = std::sqrt(again.cost / static_cast<double>(samples.size()));
         } else {
@@ -492,7 +499,7 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFram
     curve.contrast = x[degree + 5];
     band_curve = &curve;
   }
-  if (!check) return {curve, ""};
+  if (!check) return {curve, "", iterations};
   if (!(curve.contrast > 0)) return {std::nullopt, "edge contrast inverted (the fit found dark outside the marker)"};
   if (!(curve.contrast >= o.min_contrast)) {
     return {std::nullopt, "edge contrast " + std::to_string(static_cast<int>(std::lround(curve.contrast))) +
@@ -500,7 +507,7 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFram
   }
   if (curve.sigma > o.max_blur_px) return {std::nullopt, "edge blur sigma " + std::to_string(curve.sigma) + " px too large"};
   if (curve.rms > o.max_residual * curve.contrast) return {std::nullopt, "edge does not look like a step (fit residual too large)"};
-  return {curve, ""};
+  return {curve, "", iterations};
 }
 
 // Corner where two edge curves meet: Newton's method on (g_a, g_b)(p) = 0 from p.
@@ -653,6 +660,7 @@ EdgeFit refine_pass(const cv::Mat& grey, const Levels& levels, const std::array<
       if (result.failure.empty()) result.failure = r.failure;
       return std::nullopt;
     }
+    result.iterations += r.iterations;
     blur += r.curve->sigma;
     result.contrast = std::min(result.contrast, r.curve->contrast);
     result.residual = std::max(result.residual, r.curve->rms / r.curve->contrast);
@@ -718,6 +726,7 @@ EdgeFit refine_marker_corners(const cv::Mat& grey, const std::array<Eigen::Vecto
   const EdgeFit coarse = refine_pass(grey, levels, q, cells, 1, o.initial_corner_error_px, false, o);
   EdgeFit fine = coarse.ok ? refine_pass(grey, levels, coarse.corners, cells, 2, 0, true, o)
                            : refine_pass(grey, levels, q, cells, 2, o.initial_corner_error_px, true, o);
+  fine.iterations += coarse.iterations;
   if (!fine.ok) return fine;
   double mean_side = 0;
   for (int k = 0; k < 4; ++k) mean_side += 0.25 * (q[(k + 1) % 4] - q[k]).norm();

@@ -137,6 +137,7 @@ struct EdgeFit {
   double blur_px = 0;                   // mean sigma of the four edges
   double contrast = 0;                  // smallest b0 of the four edges
   double residual = 0;                  // largest RMS residual / contrast
+  int iterations = 0;                   // Levenberg-Marquardt iterations of the edge fits, both passes
 };
 
 // Refines the corners of one marker (initial corners TL TR BR BL from OpenCV; `cells` = bits per
