@@ -170,7 +170,9 @@ std::vector<Sample> band_samples(const cv::Mat& grey, const Levels& levels, cons
                                  double delta) {
   double reach = w;
   if (curve) {
-    for (double t : {t0, 0.5 * (t0 + t1), t1}) reach = std::max(reach, w + std::abs(curve->g(e.origin + t * e.d)));
+    for (double tau : {t0 / e.length - 0.5, 0.5 * (t0 + t1) / e.length - 0.5, t1 / e.length - 0.5}) {
+      reach = std::max(reach, w + std::abs(curve->f(tau)));
+    }
   }
   double x_lo = 1e300, x_hi = -1e300, y_lo = 1e300, y_hi = -1e300;
   for (double t : {t0, t1}) {
@@ -193,7 +195,7 @@ std::vector<Sample> band_samples(const cv::Mat& grey, const Levels& levels, cons
       if (t < t0 || t > t1) continue;
       const double tau = t / e.length - 0.5;
       const double s = e.n.dot(q);
-      const double across = curve ? curve->g(p) : s;
+      const double across = s - (curve ? curve->f(tau) : 0.0);
       if (std::abs(across) > w) continue;
       if (across < delta && (neighbours[0].inward.dot(p - neighbours[0].corner) < delta ||
                              neighbours[1].inward.dot(p - neighbours[1].corner) < delta)) {
@@ -415,10 +417,10 @@ struct EdgeFitResult {
   int iterations = 0;  // of every fit made for this edge
 };
 
-// Fits one edge over t in [lo, hi] with band half-width w (`check`: refuse a fit that fails the
-// contrast, blur and residual limits): a first fit on a band around the straight edge between the
-// given corners, then (rounds = 2) one on a band that follows the fitted curve. The neighbouring edges are kept out by delta = 3 sigma + 3/4 (the blur and the
-// pixel's half diagonal) plus `corner_error_px`, the uncertainty of the corners the neighbours
+// Fits one edge over t in [lo, hi] with band half-width w, and refuses a fit that fails the
+// contrast, blur and residual limits: a first fit on a band around the straight edge between the
+// given corners, then (rounds = 2) one on a band that follows the fitted curve. The neighbouring
+// edges are kept out by delta = 3 sigma + 3/4 (the blur and the pixel's half diagonal) plus `corner_error_px`, the uncertainty of the corners the neighbours
 // are drawn through. The polynomial degree is at most L / options.min_px_per_degree for a stretch
 // of L px: a cubic fitted to a few pixels extrapolates badly. `final_pass`: the last round runs to
 // options.tolerance_px; otherwise (a coarse pass that only places the next one's frames) every
@@ -426,7 +428,7 @@ struct EdgeFitResult {
 // coefficient is not significant.
 EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFrame& frame, double lo, double hi,
                        const std::array<NeighbourEdge, 2>& neighbours, double w, int rounds, double corner_error_px,
-                       bool check, bool final_pass, const EdgeFitOptions& o) {
+                       bool final_pass, const EdgeFitOptions& o) {
   EdgeCurve curve;
   curve.frame = frame;
   const Footprint footprint = Footprint::across(frame.n);
@@ -466,19 +468,18 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFram
     const bool last = final_pass && round == rounds - 1;
     // The rounds before the last only place the band (or the next pass): a coarse tolerance will do.
     const double tolerance = last ? o.tolerance_px : 10 * o.tolerance_px;
-    ModelFit fitted = fit_edge_model(samples, footprint, degree, o.max_iterations, o.max_blur_px, tolerance, x);
+    const ModelFit fitted = fit_edge_model(samples, footprint, degree, o.max_iterations, o.max_blur_px, tolerance, x);
     iterations += fitted.iterations;
-    const std::optional<ModelFit> result = fitted.ok && x.allFinite() ? std::optional<ModelFit>(std::move(fitted)) : std::nullopt;
-    if (!result) return {std::nullopt, "edge fit did not converge"};
+    if (!fitted.ok || !x.allFinite()) return {std::nullopt, "edge fit did not converge"};
     // The fit's RMS residual (its cost is the sum of squares at x).
-    curve.rms = std::sqrt(result->cost / static_cast<double>(samples.size()));
+    curve.rms = std::sqrt(fitted.cost / static_cast<double>(samples.size()));
     // Occam's razor on each pass's last band: drop the highest curve coefficient while it is not
     // significant, so straight edges are not fitted with wiggles that extrapolate badly. The
     // degrees are dropped at once on the linearised solution (drop_insignificant_degrees); the
     // final pass then fits the lower degree again from there (one or two iterations), the coarse
     // pass keeps it.
-    if (round == rounds - 1 && degree > 1 && result->top_z < o.degree_significance) {
-      const int lowered = drop_insignificant_degrees(x, degree, result->normal, result->cost,
+    if (round == rounds - 1 && degree > 1 && fitted.top_z < o.degree_significance) {
+      const int lowered = drop_insignificant_degrees(x, degree, fitted.normal, fitted.cost,
                                                      static_cast<double>(samples.size()), o.degree_significance);
       if (lowered < degree) {
         degree = lowered;
@@ -499,7 +500,6 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFram
     curve.contrast = x[degree + 5];
     band_curve = &curve;
   }
-  if (!check) return {curve, "", iterations};
   if (!(curve.contrast > 0)) return {std::nullopt, "edge contrast inverted (the fit found dark outside the marker)"};
   if (!(curve.contrast >= o.min_contrast)) {
     return {std::nullopt, "edge contrast " + std::to_string(static_cast<int>(std::lround(curve.contrast))) +
@@ -679,7 +679,7 @@ EdgeFit refine_pass(const cv::Mat& grey, const Levels& levels, const std::array<
                                           NeighbourEdge{q[(e + 1) % 4], inward((e + 1) % 4, (e + 2) % 4),
                                                         sin_angle[(e + 1) % 4]}};
     auto fit = [&](double lo, double hi) {
-      return take(fit_edge(grey, levels, frames[e], lo, hi, nb, window[e], rounds, corner_error_px, true, final_pass, o));
+      return take(fit_edge(grey, levels, frames[e], lo, hi, nb, window[e], rounds, corner_error_px, final_pass, o));
     };
     if (o.span >= 1) {
       const auto curve = fit(0, L);
