@@ -4,6 +4,8 @@
 #include <sys/mman.h>
 
 #include <cstdint>
+#include <map>
+#include <mutex>
 
 #include <opencv2/core.hpp>
 
@@ -37,7 +39,8 @@ void* map_aligned(std::size_t bytes) {
 // deallocate() frees a block it allocated. Blocks under `min_bytes` go to OpenCV's own allocator.
 class HugePageAllocator final : public cv::MatAllocator {
  public:
-  explicit HugePageAllocator(std::size_t min_bytes) : min_bytes_(min_bytes), std_(cv::Mat::getStdAllocator()) {}
+  HugePageAllocator(std::size_t min_bytes, std::size_t cache_bytes)
+      : min_bytes_(min_bytes), cache_limit_(cache_bytes), std_(cv::Mat::getStdAllocator()) {}
 
   cv::UMatData* allocate(int dims, const int* sizes, int type, void* data, size_t* step, cv::AccessFlag flags,
                          cv::UMatUsageFlags usage) const override {
@@ -48,7 +51,8 @@ class HugePageAllocator final : public cv::MatAllocator {
       total *= static_cast<std::size_t>(sizes[i]);
     }
     if (total < min_bytes_) return std_->allocate(dims, sizes, type, data, step, flags, usage);
-    void* block = map_aligned(total);
+    void* block = take_cached(round_up(total, kHugePage));
+    if (!block) block = map_aligned(total);
     if (!block) return std_->allocate(dims, sizes, type, data, step, flags, usage);
     auto* u = new cv::UMatData(this);
     u->data = u->origdata = static_cast<uchar*>(block);
@@ -61,21 +65,51 @@ class HugePageAllocator final : public cv::MatAllocator {
   void deallocate(cv::UMatData* u) const override {
     if (!u) return;
     CV_Assert(u->urefcount == 0 && u->refcount == 0);
-    if (!(u->flags & cv::UMatData::USER_ALLOCATED) && u->origdata) munmap(u->origdata, round_up(u->size, kHugePage));
+    if (!(u->flags & cv::UMatData::USER_ALLOCATED) && u->origdata) release(u->origdata, round_up(u->size, kHugePage));
     u->origdata = nullptr;
     delete u;
   }
 
  private:
+  // A freed block of exactly this length, or nullptr.
+  void* take_cached(std::size_t length) const {
+    const std::lock_guard lock(mutex_);
+    const auto it = cache_.find(length);
+    if (it == cache_.end()) return nullptr;
+    void* p = it->second;
+    cache_.erase(it);
+    cached_ -= length;
+    return p;
+  }
+
+  // Keeps the block for the next image's arrays of the same size while the cache holds less than
+  // its limit; unmaps it otherwise. A reused block is not cleared again by the kernel, which
+  // costs ~1 s a photo for SIFT's ~0.8 GB of pyramids (docs/measurements/detect.md, session 53).
+  void release(void* p, std::size_t length) const {
+    {
+      const std::lock_guard lock(mutex_);
+      if (cached_ + length <= cache_limit_) {
+        cache_.emplace(length, p);
+        cached_ += length;
+        return;
+      }
+    }
+    munmap(p, length);
+  }
+
   std::size_t min_bytes_;
+  std::size_t cache_limit_;
   cv::MatAllocator* std_;
+  mutable std::mutex mutex_;
+  mutable std::multimap<std::size_t, void*> cache_;
+  mutable std::size_t cached_ = 0;
 };
 
 }  // namespace
 
-void use_huge_pages_for_large_images(std::size_t min_bytes) {
+void use_huge_pages_for_large_images(std::size_t min_bytes, std::size_t cache_bytes) {
   // Never destroyed: Mats made with it may outlive any static (OpenCV's own allocator is the same).
-  static HugePageAllocator* const allocator = new HugePageAllocator(min_bytes);
+  static HugePageAllocator* const allocator = new HugePageAllocator(min_bytes, cache_bytes);
   cv::Mat::setDefaultAllocator(allocator);
 }
 

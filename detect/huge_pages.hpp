@@ -17,7 +17,10 @@ namespace photomill::detect {
 
 // Makes OpenCV allocate every cv::Mat of at least `min_bytes` as its own anonymous mapping,
 // 2 MiB aligned, marked MADV_HUGEPAGE (smaller ones as before). Call before the images are
-// made; the allocator lives until the process ends. Idempotent; the first call's size wins.
-void use_huge_pages_for_large_images(std::size_t min_bytes = std::size_t{8} << 20);
+// made; the allocator lives until the process ends. Idempotent; the first call's sizes win.
+// Freed blocks are kept, up to `cache_bytes` in all, and handed out again for arrays of the same
+// size (the next photo's pyramid), so their pages are not cleared by the kernel again.
+void use_huge_pages_for_large_images(std::size_t min_bytes = std::size_t{8} << 20,
+                                     std::size_t cache_bytes = std::size_t{1} << 30);
 
 }  // namespace photomill::detect

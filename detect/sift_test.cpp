@@ -283,7 +283,8 @@ TEST(Sift, SpreadCapKeepsFeaturesInTheShadow) {
 }
 
 // Large images in huge pages: a large Mat starts on a 2 MiB boundary and holds what is written;
-// a small one still comes from OpenCV's allocator; SIFT finds the same features either way.
+// a small one still comes from OpenCV's allocator; a freed block is reused for the same size;
+// SIFT finds the same features either way.
 // (Installs the allocator for the rest of this test program.)
 TEST(HugePages, SameFeaturesAndAlignedLargeImages) {
   cv::Mat big_texture;
@@ -300,11 +301,24 @@ TEST(HugePages, SameFeaturesAndAlignedLargeImages) {
   EXPECT_EQ(cv::sum(large)[0], 1.5 * 2000 * 1000 - 1.5 + 7);
   cv::Mat view = large(cv::Rect(10, 10, 100, 100)).clone();  // 40 kB: OpenCV's own allocator
   EXPECT_EQ(view.at<float>(0, 0), 1.5f);
+  const uchar* block = large.data;
   large.release();
-  const FeatureSet after = detect_sift(big_texture, "t", o);
-  ASSERT_EQ(after.keypoints.size(), before.keypoints.size());
-  EXPECT_EQ(after.descriptors, before.descriptors);
-  for (std::size_t k = 0; k < after.keypoints.size(); ++k) EXPECT_EQ(after.keypoints[k], before.keypoints[k]);
+  // The freed block is kept and handed to the next array of its size, as it was written (not
+  // cleared); one of another size gets a block of its own.
+  cv::Mat again(2000, 1000, CV_32F);
+  EXPECT_EQ(again.data, block);
+  EXPECT_EQ(again.at<float>(1999, 999), 7.0f);
+  cv::Mat other(3000, 1000, CV_32F);
+  EXPECT_NE(other.data, block);
+  again.release();
+  other.release();
+  // SIFT's pyramids in reused blocks (the second run's are the first's) give the same features.
+  for (int run = 0; run < 2; ++run) {
+    const FeatureSet after = detect_sift(big_texture, "t", o);
+    ASSERT_EQ(after.keypoints.size(), before.keypoints.size());
+    EXPECT_EQ(after.descriptors, before.descriptors);
+    for (std::size_t k = 0; k < after.keypoints.size(); ++k) EXPECT_EQ(after.keypoints[k], before.keypoints[k]);
+  }
 }
 
 }  // namespace

@@ -15,8 +15,14 @@ fail() { echo "makefile_test: $*" >&2; exit 1; }
 quoted=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="$demo/part_*.jpg" CALIB_PHOTOS="$demo/board_*.jpg" OUT=job1)
 unquoted=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="$(echo "$demo"/part_*.jpg)" CALIB_PHOTOS="$(echo "$demo"/board_*.jpg)" OUT=job1)
 [ "$quoted" = "$unquoted" ] || fail "quoted and unquoted globs give different commands"
-n=$(grep -c "^/opt/pm/bin/detect --aruco .*part_[0-9]*\.jpg" <<<"$quoted" || true)
-[ "$n" -eq 12 ] || fail "expected one detect per demo photo (12), got $n"
+# One detect for all the photos (DETECT_BATCH=1, the default), a detect per photo with DETECT_BATCH=0.
+n=$(grep -c "^/opt/pm/bin/detect --aruco .*part_00\.jpg .*part_11\.jpg -o job1/obs/all\.csv$" <<<"$quoted" || true)
+[ "$n" -eq 1 ] || fail "expected one detect for the 12 demo photos, got $n: $(grep -c '/detect --aruco' <<<"$quoted") detect runs"
+per_photo=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="$demo/part_*.jpg" CALIB_PHOTOS="$demo/board_*.jpg" OUT=job1 DETECT_BATCH=0)
+n=$(grep -c "^/opt/pm/bin/detect --aruco .*part_[0-9]*\.jpg -o job1/obs/part_[0-9]*\.csv$" <<<"$per_photo" || true)
+[ "$n" -eq 12 ] || fail "DETECT_BATCH=0: expected one detect per demo photo (12), got $n"
+grep -q "^awk .* job1/obs/part_00.csv .* job1/obs/part_11.csv > job1/observations.csv" <<<"$per_photo" ||
+  fail "DETECT_BATCH=0: the photos' observations are not joined: $(grep '^awk' <<<"$per_photo")"
 grep -q "board_09.jpg" <<<"$quoted" || fail "the calibration photos were not expanded"
 
 # Extra fitsurf options (the walkthrough's FITSURF+=...) keep the part box.
@@ -32,7 +38,7 @@ grep -q "PHOTOS: 'nowhere/\*.jpg' matches no file" <<<"$out" || fail "unexpected
 # Photos named .JPG (as many cameras write them) work alike; two extensions in one PHOTOS stop make.
 mkdir -p upper && for f in "$demo"/part_0[0-2].jpg; do n=$(basename "$f" .jpg); ln -s "$f" "upper/$n.JPG"; done
 ln -s "$demo/part_03.jpg" upper/part_03.jpg
-jpg=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="upper/*.JPG" CALIB_PHOTOS="$demo/board_*.jpg" OUT=job3)
+jpg=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="upper/*.JPG" CALIB_PHOTOS="$demo/board_*.jpg" OUT=job3 DETECT_BATCH=0)
 n=$(grep -c "^/opt/pm/bin/detect --aruco .*upper/part_0[0-2]\.JPG -o job3/obs/part_0[0-2]\.csv" <<<"$jpg" || true)
 [ "$n" -eq 3 ] || fail "expected one detect per .JPG photo (3), got $n"
 grep -q "job3/feat/part_00.JPG.feat" <<<"$jpg" || fail "the .JPG photos' features are not matched"
@@ -52,8 +58,8 @@ free=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="upper/*.JPG" CALIB_PHOTOS="nowhe
 grep -q "^cp given.yaml job4/camera.yaml" <<<"$free" || fail "CAMERA= is not copied as the job's camera"
 ! grep -q -e "/calib " -e "--charuco" -e "--aruco" -e "--control-points" -e "--keep-box" -e "/toolpath " -e "/clpost " -e "/rough " <<<"$free" ||
   fail "MARKERS=0 still runs a step that needs markers, control points or mm: $(grep -e /calib -e --aruco -e --control-points -e --keep-box -e /toolpath -e /clpost -e /rough <<<"$free" | head -2)"
-n=$(grep -c "^/opt/pm/bin/detect  --features job4/feat .*upper/part_0[0-2]\.JPG *$" <<<"$free" || true)
-[ "$n" -eq 3 ] || fail "expected one features-only detect per photo (3), got $n: $(grep detect <<<"$free" | head -1)"
+n=$(grep -c "^/opt/pm/bin/detect  --features job4/feat .*upper/part_00\.JPG upper/part_01\.JPG upper/part_02\.JPG *$" <<<"$free" || true)
+[ "$n" -eq 1 ] || fail "expected one features-only detect for the 3 photos, got $n: $(grep detect <<<"$free" | head -1)"
 grep -q "^/opt/pm/bin/match job4/feat/part_00.JPG.feat job4/feat/part_01.JPG.feat job4/feat/part_02.JPG.feat --camera job4/camera.yaml --root-sift -o job4/tracks.csv" <<<"$free" ||
   fail "MARKERS=0: match is not given every photo's features without poses (and --root-sift): $(grep /match <<<"$free")"
 # ... and detect the cap by scale (the largest features, as COLMAP keeps them).
@@ -68,7 +74,7 @@ grep -q "MARKERS=0 needs FEATURES=1" <<<"$out" || fail "unexpected message: $out
 # Points clicked with pick (CLICKED=) join the markers' observations; not without markers.
 touch clicked.csv
 clicked=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="$demo/part_*.jpg" CALIB_PHOTOS="$demo/board_*.jpg" CLICKED=clicked.csv OUT=job5)
-grep -q "^awk .* job5/obs/part_11.csv clicked.csv > job5/observations.csv" <<<"$clicked" || fail "CLICKED= is not joined to the observations: $(grep '^awk' <<<"$clicked")"
+grep -q "^awk .* job5/obs/all.csv clicked.csv > job5/observations.csv" <<<"$clicked" || fail "CLICKED= is not joined to the observations: $(grep '^awk' <<<"$clicked")"
 if out=$(make -n -f "$mk" BIN=/opt/pm/bin PHOTOS="upper/*.JPG" CAMERA=given.yaml MARKERS=0 CLICKED=clicked.csv OUT=job5 2>&1); then
   fail "CLICKED= with MARKERS=0 must stop make"
 fi

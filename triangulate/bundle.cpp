@@ -246,7 +246,15 @@ BundleSummary bundle_adjust(Scene& scene, const BundleSetup& setup, const Bundle
   so.function_tolerance = options.function_tolerance;
   so.gradient_tolerance = options.gradient_tolerance;
   so.parameter_tolerance = options.parameter_tolerance;
-  so.num_threads = geometry::thread_count(options.threads);
+  // One thread when the intrinsics are refined: their block is in every residual, and Ceres 2.1's
+  // Schur eliminator locks each block of the reduced system a point updates, so two threads
+  // queue on that block for every point. On the demo's features stage (12 images, 27 666 points)
+  // the eliminator took 1.80 s on two threads against 0.67 s on one, and the four adjustments
+  // 7.1 s against 4.5 s; on 200 synthetic views and 100 000 points 78.8 s against 68.2 s
+  // (docs/measurements/triangulate.md, session 53). Without a shared block both ran alike.
+  const bool shared_block = options.refine_intrinsics != IntrinsicsRefinement::None &&
+                            problem.HasParameterBlock(scene.cameras.front().params.data());
+  so.num_threads = shared_block ? 1 : geometry::thread_count(options.threads);
   so.logging_type = ceres::SILENT;
   so.minimizer_progress_to_stdout = false;
   ceres::Solver::Summary summary;
@@ -258,6 +266,7 @@ BundleSummary bundle_adjust(Scene& scene, const BundleSetup& setup, const Bundle
   out.final_cost = summary.final_cost;
   out.usable = summary.IsSolutionUsable();
   out.solver = ceres::LinearSolverTypeToString(summary.linear_solver_type_used);
+  out.threads = so.num_threads;
   out.message = summary.message;
   out.timing = "preprocessor " + std::to_string(summary.preprocessor_time_in_seconds) + " s, residuals " +
                std::to_string(summary.residual_evaluation_time_in_seconds) + " s, jacobians " +

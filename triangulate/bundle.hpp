@@ -102,6 +102,7 @@ struct BundleSummary {
   std::size_t images = 0;        // poses in the adjustment
   std::size_t points = 0;        // points in the adjustment
   std::string solver;            // linear solver used
+  int threads = 0;               // threads Ceres used
   std::string message;           // Ceres' termination message
   std::string timing;            // where the time went (preprocessing, Jacobians, linear solver)
 };

@@ -155,7 +155,7 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--covariance-max-parameters", o.covariance.max_reduced_parameters,
                  "Largest reduced camera system inverted for the full point covariance")
       ->capture_default_str()->check(tool::non_negative_up_to(1e6))->group(ba);
-  app.add_option("--threads", o.threads, "Threads (0: all cores)")->check(CLI::Range(0, 1024))->capture_default_str()->group(ba);
+  app.add_option("--threads", o.threads, "Threads (0: all cores); the bundle adjustment takes one when it refines the intrinsics (faster: docs/triangulate.md)")->check(CLI::Range(0, 1024))->capture_default_str()->group(ba);
 
   const std::string geo = "Poses and triangulation";
   app.add_option("--min-angle-deg", o.triangulation.min_angle_deg, "Smallest intersection angle of a track's rays")

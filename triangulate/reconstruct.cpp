@@ -525,8 +525,9 @@ BundleSummary Pipeline::adjust(const BundleSetup& setup, std::optional<double> f
   ++report_.adjustments;
   report_.adjustment_seconds += last_.seconds;
   report_.solver = last_.solver;
+  report_.threads = last_.threads;
   log::debug("bundle adjustment: " + std::to_string(last_.images) + " images, " + std::to_string(last_.points) +
-             " points, " + std::to_string(last_.iterations) + " iterations, " + fmt(last_.seconds) + " s, " +
+             " points, " + std::to_string(last_.iterations) + " iterations, " + fmt(last_.seconds) + " s (" + last_.timing + "), " +
              last_.message);
   return last_;
 }
@@ -1010,7 +1011,7 @@ void Pipeline::finish(Reconstruction& r) {
   rep.loss = to_string(o_.bundle.loss);
   rep.loss_scale_px = o_.bundle.loss_scale_px;
   rep.refine_intrinsics = to_string(o_.bundle.refine_intrinsics);
-  rep.threads = geometry::thread_count(o_.threads);
+  if (rep.threads == 0) rep.threads = geometry::thread_count(o_.threads);  // no adjustment ran
   for (std::size_t k = 0; k < scene_.cameras.size(); ++k) {
     r.cameras.push_back(to_camera(scene_.cameras[k], input_.cameras.empty() ? input_.camera : input_.cameras[k].camera));
   }

@@ -7,6 +7,7 @@
 
 #include <ceres/ceres.h>
 
+#include "triangulate/analytic_residuals.hpp"
 #include "triangulate/scene.hpp"
 
 namespace photomill::triangulate {
@@ -30,7 +31,15 @@ struct ReprojectionError {
     return true;
   }
 
+  // The analytic form (analytic_residuals.hpp) where it covers the camera's model.
   static ceres::CostFunction* create(const CameraModel* camera, const Eigen::Vector2d& uv_px, double sigma_px) {
+    if (analytic_projection_applies(shape_of(*camera))) {
+      return new AnalyticReprojectionError(camera, uv_px.x(), uv_px.y(), sigma_px);
+    }
+    return create_automatic(camera, uv_px, sigma_px);
+  }
+  static ceres::CostFunction* create_automatic(const CameraModel* camera, const Eigen::Vector2d& uv_px,
+                                               double sigma_px) {
     return new ceres::AutoDiffCostFunction<ReprojectionError, 2, 6, 3>(
         new ReprojectionError(camera, uv_px, sigma_px));
   }
@@ -73,9 +82,14 @@ constexpr int intrinsics_read(const ModelShape& shape) {
 }
 
 // ReprojectionErrorWithIntrinsics<block_size>, block_size one of 9, 12, 16, 18 and at least
-// intrinsics_read(shape).
+// intrinsics_read(shape); the analytic form (analytic_residuals.hpp) where it covers the model
+// and the block, unless `automatic`.
 inline ceres::CostFunction* reprojection_error_with_intrinsics(int block_size, const ModelShape& shape,
-                                                               const Eigen::Vector2d& uv_px, double sigma_px) {
+                                                               const Eigen::Vector2d& uv_px, double sigma_px,
+                                                               bool automatic = false) {
+  if (!automatic && block_size == kK4 && analytic_projection_applies(shape)) {
+    return new AnalyticReprojectionErrorWithIntrinsics(shape.skew, uv_px.x(), uv_px.y(), sigma_px);
+  }
   auto make = [&]<int N>() -> ceres::CostFunction* {
     return new ceres::AutoDiffCostFunction<ReprojectionErrorWithIntrinsics<N>, 2, 6, 3, N>(
         new ReprojectionErrorWithIntrinsics<N>(shape, uv_px, sigma_px));
