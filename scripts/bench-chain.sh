@@ -6,6 +6,7 @@
 # runs, wall, CPU (user + sys) and peak resident memory summed over the run (GNU time).
 # Usage: scripts/bench-chain.sh ROUNDS CONFIG...
 #   e.g. scripts/bench-chain.sh 2 now=build/bin before=/work/old/bin,DETECT_BATCH=0
+# PHOTOMILL_BENCH_PAUSE=S waits S seconds before each run (the load of the last one to decay).
 # Not a test: about 40 s a run.
 set -euo pipefail
 rounds=$1
@@ -31,6 +32,7 @@ for r in $(seq "$rounds"); do
     done
     out=$work/out-$label
     rm -rf "$out"
+    sleep "${PHOTOMILL_BENCH_PAUSE:-0}"
     load=$(cut -d' ' -f1-3 /proc/loadavg)
     start=$(date +%s.%N)
     make -s -f Makefile.example -j2 BIN="$wrap" OUT="$out" "${args[@]}" all >"$work/log" 2>&1 ||
