@@ -248,10 +248,8 @@ BundleSummary bundle_adjust(Scene& scene, const BundleSetup& setup, const Bundle
   so.parameter_tolerance = options.parameter_tolerance;
   // One thread when the intrinsics are refined: their block is in every residual, and Ceres 2.1's
   // Schur eliminator locks each block of the reduced system a point updates, so two threads
-  // queue on that block for every point. On the demo's features stage (12 images, 27 666 points)
-  // the eliminator took 1.80 s on two threads against 0.67 s on one, and the four adjustments
-  // 7.1 s against 4.5 s; on 200 synthetic views and 100 000 points 78.8 s against 68.2 s
-  // (docs/measurements/triangulate.md, session 53). Without a shared block both ran alike.
+  // queue on that block for every point and are slower than one (docs/measurements/triangulate.md,
+  // session 53). Without a shared block the threads asked for.
   const bool shared_block = options.refine_intrinsics != IntrinsicsRefinement::None &&
                             problem.HasParameterBlock(scene.cameras.front().params.data());
   so.num_threads = shared_block ? 1 : geometry::thread_count(options.threads);
