@@ -527,8 +527,8 @@ BundleSummary Pipeline::adjust(const BundleSetup& setup, std::optional<double> f
   report_.solver = last_.solver;
   report_.threads = last_.threads;
   log::debug("bundle adjustment: " + std::to_string(last_.images) + " images, " + std::to_string(last_.points) +
-             " points, " + std::to_string(last_.iterations) + " iterations, " + fmt(last_.seconds) + " s (" + last_.timing + "), " +
-             last_.message);
+             " points, " + std::to_string(last_.iterations) + " iterations, " + fmt(last_.seconds) + " s (" +
+             last_.timing + "), " + last_.message);
   return last_;
 }
 
