@@ -8,7 +8,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 build=${1:-build}
 runs=${PHOTOMILL_BENCH_RUNS:-3}
-cmake --build "$build" --target detect match detect_marker_check detect_marker_bench match_track_check -j"$(nproc)" >/dev/null
+cmake --build "$build" --target detect match detect_marker_check detect_marker_bench detect_marker_stability match_track_check -j"$(nproc)" >/dev/null
 bin=$build/bin
 tools=$build/tools/bin
 work=$(mktemp -d)
@@ -64,3 +64,13 @@ echo "== tracks against the true geometry =="
 echo
 echo "== markers, one thread each: photomill's edge fit against OpenCV's detectMarkers + CORNER_REFINE_SUBPIX =="
 "$tools/detect_marker_bench" "${photos[@]}" --set data/demo --runs 7
+
+echo
+echo "== markers: how far the edge fit's corners move when OpenCV's start corners move by 0.3 px =="
+"$tools/detect_marker_stability" "${photos[@]}"
+aruco=../shared/data/opencv-aruco
+if [ -d "$aruco" ]; then
+  echo "-- OpenCV's real ArUco photos (DICT_6X6_250, sRGB JPEGs):"
+  "$tools/detect_marker_stability" "$aruco"/singlemarkersoriginal.jpg "$aruco"/img_0[0-3].jpg \
+    --dictionary DICT_6X6_250 --gamma 2.2
+fi

@@ -6,7 +6,8 @@
 // true projections (issue #30: photomill at most 1.5 times OpenCV's time, at 0.03 px RMS or
 // better). OpenCV runs with its default detector parameters (cornerSubPix: half-window 5 px, 30
 // iterations, 0.1 px), and, as `detect --corner-refine subpix` does, with 100 iterations to
-// 0.001 px.
+// 0.001 px. A fourth line runs photomill's detection with --corner-refine none: the same
+// candidates and decoding without the edge fit, so the difference is the edge fit's own cost.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -128,6 +129,15 @@ int main(int argc, char** argv) {
             for (const auto& o : d.observations()) out[{name(k), o.point_id}] = {o.u_px, o.v_px};
           }
         };
+        // The same candidates and decoding without the edge fit: what the edge fit itself costs.
+        auto unrefined = [&](Corners& out) {
+          MarkerDetectOptions options;
+          options.refinement = CornerRefinement::None;
+          for (std::size_t k = 0; k < greys.size(); ++k) {
+            const MarkerDetection d = detect_markers(greys[k], photos[k], dictionary, options);
+            for (const auto& o : d.observations()) out[{name(k), o.point_id}] = {o.u_px, o.v_px};
+          }
+        };
         struct Method {
           std::string label;
           std::function<void(Corners&)> run;
@@ -135,7 +145,8 @@ int main(int argc, char** argv) {
         };
         std::vector<Method> methods{{"OpenCV detectMarkers + CORNER_REFINE_SUBPIX (defaults)", opencv(false), {}},
                                     {"OpenCV detectMarkers + CORNER_REFINE_SUBPIX (0.001 px, 100 it)", opencv(true), {}},
-                                    {"photomill detect_markers (edge fit)", ours, {}}};
+                                    {"photomill detect_markers (edge fit)", ours, {}},
+                                    {"photomill detect_markers, --corner-refine none", unrefined, {}}};
         // The methods take turns in every pass, so a change of machine load falls on all of them.
         for (int r = 0; r < runs; ++r) {
           for (auto& m : methods) {
