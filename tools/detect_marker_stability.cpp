@@ -5,12 +5,14 @@
 // lands on the same corners wherever it starts within its reach (OpenCV's corners are up to ~1 px
 // off); the spread is how far a corner is determined by the photo rather than by the start. Prints,
 // per photo, the markers, their mean px per cell, the edge fit's mean blur and band half-width,
-// the corners' RMS and largest movement and the refits that failed; -v one line per marker. Needs
+// the corners' RMS and largest movement and the refits that failed, by reason (numbers shown as #);
+// --per-marker one line per marker. Needs
 // no truth, so it runs on any photo (real sets included). Data on stdout.
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
 #include <iostream>
+#include <map>
 #include <random>
 
 #include <CLI/CLI.hpp>
@@ -62,6 +64,7 @@ int main(int argc, char** argv) {
           cv::aruco::detectMarkers(grey, cv::Ptr<cv::aruco::Dictionary>(dictionary.opencv()), polygons, ids,
                                    cv::aruco::DetectorParameters::create());
           double sum_sq = 0, largest = 0, px_per_cell = 0, blur = 0, band = 0;
+          std::map<std::string, int> reasons;  // refusals by reason, numbers left out
           int moved = 0, failed = 0, markers = 0;
           for (std::size_t m = 0; m < ids.size(); ++m) {
             std::array<Eigen::Vector2d, 4> start;
@@ -81,6 +84,15 @@ int main(int argc, char** argv) {
               const EdgeFit fit = refine_marker_corners(grey, from, cells, options);
               if (!fit.ok) {
                 ++marker_failed;
+                std::string reason;
+                for (char ch : fit.failure) {
+                  if ((ch >= '0' && ch <= '9') || ch == '.') {
+                    if (reason.empty() || reason.back() != '#') reason += '#';
+                  } else {
+                    reason += ch;
+                  }
+                }
+                ++reasons[reason];
                 continue;
               }
               for (int c = 0; c < 4; ++c) {
@@ -111,6 +123,7 @@ int main(int argc, char** argv) {
                     << std::setprecision(4) << (moved ? std::sqrt(sum_sq / moved) : 0.0) << " px, max " << largest
                     << " px under a start jitter of " << std::setprecision(2) << jitter_px << " px; " << failed << " of "
                     << markers * trials << " refits failed\n";
+          for (const auto& [reason, count] : reasons) std::cout << "  " << count << " x " << reason << "\n";
         }
       });
 }
