@@ -123,20 +123,15 @@ int main(int argc, char** argv) {
             }
           };
         };
-        auto ours = [&](Corners& out) {
-          for (std::size_t k = 0; k < greys.size(); ++k) {
-            const MarkerDetection d = detect_markers(greys[k], photos[k], dictionary, MarkerDetectOptions{});
-            for (const auto& o : d.observations()) out[{name(k), o.point_id}] = {o.u_px, o.v_px};
-          }
-        };
-        // The same candidates and decoding without the edge fit: what the edge fit itself costs.
-        auto unrefined = [&](Corners& out) {
-          MarkerDetectOptions options;
-          options.refinement = CornerRefinement::None;
-          for (std::size_t k = 0; k < greys.size(); ++k) {
-            const MarkerDetection d = detect_markers(greys[k], photos[k], dictionary, options);
-            for (const auto& o : d.observations()) out[{name(k), o.point_id}] = {o.u_px, o.v_px};
-          }
+        auto photomill = [&](CornerRefinement refinement) {
+          return [&, refinement](Corners& out) {
+            MarkerDetectOptions options;
+            options.refinement = refinement;
+            for (std::size_t k = 0; k < greys.size(); ++k) {
+              const MarkerDetection d = detect_markers(greys[k], photos[k], dictionary, options);
+              for (const auto& o : d.observations()) out[{name(k), o.point_id}] = {o.u_px, o.v_px};
+            }
+          };
         };
         struct Method {
           std::string label;
@@ -145,8 +140,11 @@ int main(int argc, char** argv) {
         };
         std::vector<Method> methods{{"OpenCV detectMarkers + CORNER_REFINE_SUBPIX (defaults)", opencv(false), {}},
                                     {"OpenCV detectMarkers + CORNER_REFINE_SUBPIX (0.001 px, 100 it)", opencv(true), {}},
-                                    {"photomill detect_markers (edge fit)", ours, {}},
-                                    {"photomill detect_markers, --corner-refine none", unrefined, {}}};
+                                    {"photomill detect_markers (edge fit)", photomill(CornerRefinement::Edges), {}},
+                                    // The same candidates and decoding without the edge fit: the
+                                    // difference is what the edge fit itself costs.
+                                    {"photomill detect_markers, --corner-refine none",
+                                     photomill(CornerRefinement::None), {}}};
         // The methods take turns in every pass, so a change of machine load falls on all of them.
         for (int r = 0; r < runs; ++r) {
           for (auto& m : methods) {

@@ -6,8 +6,9 @@
 // off); the spread is how far a corner is determined by the photo rather than by the start. Prints,
 // per photo, the markers, their mean px per cell, the edge fit's mean blur and band half-width,
 // the corners' RMS and largest movement and the refits that failed, by reason (numbers shown as #);
-// --per-marker one line per marker. Needs
-// no truth, so it runs on any photo (real sets included). Data on stdout.
+// --per-marker one line per marker. Needs no truth, so it runs on any photo (real sets included).
+// Data on stdout. A photo with no refined marker, or whose refits all failed, says so instead of
+// figures; a run in which no photo had a corner to compare fails.
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
@@ -56,6 +57,7 @@ int main(int argc, char** argv) {
         std::mt19937 rng(seed);
         std::normal_distribution<double> jitter(0, jitter_px);
         std::cout << std::fixed << std::setprecision(4);
+        int measured_photos = 0;
         for (const auto& photo : photos) {
           const cv::Mat grey = cv::imread(photo, cv::IMREAD_GRAYSCALE);
           if (grey.empty()) throw InputError(photo, 0, "cannot read this image");
@@ -74,7 +76,8 @@ int main(int argc, char** argv) {
             double side = 0;
             for (int c = 0; c < 4; ++c) side += 0.25 * (start[(c + 1) % 4] - start[c]).norm();
             const double cell = side / cells;
-            // The band half-width as the fit chooses it (EdgeFitOptions: window_cells, min, max).
+            // About the band half-width the fit chooses (EdgeFitOptions: window_cells, min, max;
+            // the fit takes each edge's shorter neighbour, this the mean side).
             const double w = std::clamp(options.window_cells * cell, options.min_window_px, options.max_window_px);
             double marker_sq = 0, marker_max = 0;
             int marker_n = 0, marker_failed = 0;
@@ -112,18 +115,33 @@ int main(int argc, char** argv) {
             failed += marker_failed;
             if (per_marker) {
               std::cout << photo << " marker " << ids[m] << ": " << std::setprecision(2) << cell << " px/cell, blur "
-                        << reference.blur_px << " px, band +-" << w << " px; corners moved RMS " << std::setprecision(4)
-                        << (marker_n ? std::sqrt(marker_sq / marker_n) : 0.0) << " px, max " << marker_max << " px, "
-                        << marker_failed << " of " << trials << " refits failed\n";
+                        << reference.blur_px << " px, band +-" << w << " px; ";
+              if (marker_n > 0) {
+                std::cout << "corners moved RMS " << std::setprecision(4) << std::sqrt(marker_sq / marker_n) << " px, max "
+                          << marker_max << " px, ";
+              } else {
+                std::cout << "no corners to compare, ";
+              }
+              std::cout << marker_failed << " of " << trials << " refits failed\n";
             }
           }
-          const double n = std::max(1, markers);
+          if (moved == 0) {
+            std::cout << photo << ": " << markers << " markers refined, " << failed << " of " << markers * trials
+                      << " refits failed: no corners to compare\n";
+            for (const auto& [reason, count] : reasons) std::cout << "  " << count << " x " << reason << "\n";
+            continue;
+          }
+          ++measured_photos;
+          const double n = markers;
           std::cout << photo << ": " << markers << " markers, " << std::setprecision(2) << px_per_cell / n
                     << " px/cell, blur " << blur / n << " px, band +-" << band / n << " px; corners moved RMS "
-                    << std::setprecision(4) << (moved ? std::sqrt(sum_sq / moved) : 0.0) << " px, max " << largest
+                    << std::setprecision(4) << std::sqrt(sum_sq / moved) << " px, max " << largest
                     << " px under a start jitter of " << std::setprecision(2) << jitter_px << " px; " << failed << " of "
                     << markers * trials << " refits failed\n";
           for (const auto& [reason, count] : reasons) std::cout << "  " << count << " x " << reason << "\n";
+        }
+        if (measured_photos == 0) {
+          throw GeometryError("no photo had a marker whose corners could be refitted: nothing measured");
         }
       });
 }
