@@ -126,6 +126,7 @@ struct EdgeCurve {
   EdgeFrame frame;
   Eigen::VectorXd c;
   double sigma = 0, contrast = 0, rms = 0;
+  double band_px = 0;  // the band's half-width in the last round
   double f(double tau) const {
     double v = 0;
     for (Eigen::Index j = c.size() - 1; j >= 0; --j) v = v * tau + c[j];
@@ -147,8 +148,22 @@ struct EdgeCurve {
   }
 };
 
+// `inner`: how white the code cell inside the border is at this sample's place along the edge
+// (0: a black cell or the border's own corner cells; 1: a white cell), `border_px` the border's
+// width across the edge there. Both 0 where the code is unknown.
 struct Sample {
   double tau, s, value;
+  double inner = 0, border_px = 0;
+};
+
+// The code cells next to one edge's border, for the model's inner term (markers.hpp). Edge
+// coordinates (a, d) in cells: a along the edge from its first corner, d inwards from its outer
+// line; `image_from_edge` maps (a, d, 1) to image pixels (the homography through the marker's
+// corners), `edge_from_image` back. `white[j]`: the code cell at a in [j + 1, j + 2], d in [1, 2].
+struct InnerCode {
+  Eigen::Matrix3d image_from_edge, edge_from_image;
+  std::vector<double> white;
+  double cell_px = 0;  // mean cell length along the edge, px
 };
 
 // The other edge at one end of an edge: the line through the corner along that edge, with its
@@ -165,9 +180,12 @@ struct NeighbourEdge {
 // sin(alpha) from the corner.
 using Levels = std::array<double, 256>;  // grey value -> intensity fitted (see EdgeFitOptions::gamma)
 
+// With `code` (the marker's decoded cells), each sample also gets the code cell inside the border
+// at its place along the edge and the border's width there (Sample); the cell's ends along the edge
+// are blurred by sigma_px and the pixel (sqrt(sigma^2 + 1/12), the box's variance).
 std::vector<Sample> band_samples(const cv::Mat& grey, const Levels& levels, const EdgeFrame& e, double t0, double t1,
                                  double w, const EdgeCurve* curve, const std::array<NeighbourEdge, 2>& neighbours,
-                                 double delta) {
+                                 double delta, const InnerCode* code, double sigma_px) {
   double reach = w;
   if (curve) {
     for (double tau : {t0 / e.length - 0.5, 0.5 * (t0 + t1) / e.length - 0.5, t1 / e.length - 0.5}) {
@@ -186,6 +204,7 @@ std::vector<Sample> band_samples(const cv::Mat& grey, const Levels& levels, cons
   const int r0 = std::max(0, static_cast<int>(std::floor(y_lo))), r1 = std::min(grey.rows - 1, static_cast<int>(std::ceil(y_hi)));
   std::vector<Sample> out;
   out.reserve(static_cast<std::size_t>(r1 - r0 + 1) * static_cast<std::size_t>(c1 - c0 + 1));
+  const double inv_cell_blur = 1 / std::sqrt(sigma_px * sigma_px + 1.0 / 12);
   for (int y = r0; y <= r1; ++y) {
     const auto* row = grey.ptr<std::uint8_t>(y);
     for (int x = c0; x <= c1; ++x) {
@@ -201,7 +220,21 @@ std::vector<Sample> band_samples(const cv::Mat& grey, const Levels& levels, cons
                              neighbours[1].inward.dot(p - neighbours[1].corner) < delta)) {
         continue;
       }
-      out.push_back({tau, s, levels[row[x]]});
+      Sample smp{tau, s, levels[row[x]]};
+      if (code) {
+        const Eigen::Vector3d h = code->edge_from_image * Eigen::Vector3d(x, y, 1);
+        const double a = h.x() / h.z();
+        const Eigen::Vector3d outer = code->image_from_edge * Eigen::Vector3d(a, 0, 1);
+        const Eigen::Vector3d inner = code->image_from_edge * Eigen::Vector3d(a, 1, 1);
+        smp.border_px = e.n.dot(outer.head<2>() / outer.z() - inner.head<2>() / inner.z());
+        for (std::size_t j = 0; j < code->white.size(); ++j) {
+          if (code->white[j] == 0) continue;
+          const double lo = (a - static_cast<double>(j + 1)) * code->cell_px * inv_cell_blur;
+          const double hi = (a - static_cast<double>(j + 2)) * code->cell_px * inv_cell_blur;
+          smp.inner += code->white[j] * (normal_cdf(lo) - normal_cdf(hi));
+        }
+      }
+      out.push_back(smp);
     }
   }
   return out;
@@ -214,7 +247,15 @@ template <int NC, typename Vec>
 double model_value(const Vec& p, double inv_sigma, const Sample& smp, const Footprint& fp, Response* out = nullptr) {
   double f = 0;
   for (int j = NC - 1; j >= 0; --j) f = f * smp.tau + p[j];
-  const Response resp = edge_response(smp.s - f, p[NC], inv_sigma, fp);
+  Response resp = edge_response(smp.s - f, p[NC], inv_sigma, fp);
+  if (smp.inner > 0) {
+    // The inner term: where the code cell inside the border is white, the intensity rises again
+    // one border width further in (markers.hpp).
+    const Response in = edge_response(smp.s - f + smp.border_px, p[NC], inv_sigma, fp);
+    resp.r += smp.inner * (1 - in.r);
+    resp.dr_dx -= smp.inner * in.dr_dx;
+    resp.dr_dsigma -= smp.inner * in.dr_dsigma;
+  }
   if (out) *out = resp;
   const double a = p[NC + 1] + p[NC + 2] * smp.tau + p[NC + 3] * smp.s;
   const double b = p[NC + 4] + p[NC + 5] * smp.tau + p[NC + 6] * smp.s;
@@ -411,6 +452,18 @@ int drop_insignificant_degrees(Eigen::VectorXd& x, int degree, Eigen::MatrixXd H
   return degree;
 }
 
+// The band's half-width w for an edge whose border is `cell_px` wide across it, blurred by sigma
+// (the last round's; the start's in the first). Without the code: half a cell, in the black border.
+// With it, a small or blurred marker's band is widened to hold the blurred transition (reach
+// 3 sigma + 3/4 px, the blur and the pixel's half diagonal) and `band_plateau_px` of level ground
+// beyond it on each side, but at most to the whole border (one cell), whose inner edge the model's
+// inner term explains. Within [min_window_px, max_window_px] either way.
+double band_half_width(double cell_px, double sigma, bool code, const EdgeFitOptions& o) {
+  double w = o.window_cells * cell_px;
+  if (code) w = std::max(w, std::min(cell_px, 3 * sigma + 0.75 + o.band_plateau_px));
+  return std::clamp(w, o.min_window_px, o.max_window_px);
+}
+
 struct EdgeFitResult {
   std::optional<EdgeCurve> curve;
   std::string failure;
@@ -427,8 +480,8 @@ struct EdgeFitResult {
 // round stops at 10x the tolerance. Either way the last round lowers the degree while its top
 // coefficient is not significant.
 EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFrame& frame, double lo, double hi,
-                       const std::array<NeighbourEdge, 2>& neighbours, double w, int rounds, double corner_error_px,
-                       bool final_pass, const EdgeFitOptions& o) {
+                       const std::array<NeighbourEdge, 2>& neighbours, double cell_px, int rounds, double corner_error_px,
+                       bool final_pass, const InnerCode* code, const EdgeFitOptions& o) {
   EdgeCurve curve;
   curve.frame = frame;
   const Footprint footprint = Footprint::across(frame.n);
@@ -447,8 +500,13 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFram
       degree = std::clamp(static_cast<int>((t1 - t0) / o.min_px_per_degree), 1, o.degree);
       x = Eigen::VectorXd::Zero(degree + 8);
     }
+    const double w = band_half_width(cell_px, sigma, code != nullptr, o);
+    // The inner term only where the band comes within the blur's reach of the border's inner edge
+    // (10 sigma + 1 px): big markers are fitted as before, at no extra cost.
+    const InnerCode* round_code = code && cell_px - w < 10 * sigma + 1 ? code : nullptr;
+    curve.band_px = w;
     const auto samples = band_samples(grey, levels, frame, std::max(lo, 0.0), std::min(hi, frame.length), w, band_curve,
-                                      neighbours, delta);
+                                      neighbours, delta, round_code, sigma);
     if (static_cast<int>(samples.size()) < std::max(o.min_pixels_per_edge, degree + 8)) {
       return {std::nullopt, "too few pixels along an edge (" + std::to_string(samples.size()) + ")"};
     }
@@ -590,6 +648,10 @@ MarkerDictionary MarkerDictionary::from_file(const std::string& path) {
 int MarkerDictionary::marker_count() const { return dictionary_->bytesList.rows; }
 int MarkerDictionary::bits_per_side() const { return dictionary_->markerSize; }
 int MarkerDictionary::max_correction_bits() const { return dictionary_->maxCorrectionBits; }
+cv::Mat MarkerDictionary::code(int id) const {
+  if (id < 0 || id >= marker_count()) throw UsageError("marker id " + std::to_string(id) + " is not in the dictionary");
+  return cv::aruco::Dictionary::getBitsFromByteList(dictionary_->bytesList.rowRange(id, id + 1), dictionary_->markerSize);
+}
 
 const std::vector<std::string>& corner_refinement_names() {
   static const std::vector<std::string> names{"edges", "subpix", "contour", "none"};
@@ -619,13 +681,70 @@ namespace {
 // One pass of the refinement from corners q: frames, bands and neighbours drawn through q, whose
 // corners are uncertain by `corner_error_px`; corners = intersections of the fitted edges.
 // `final_pass` as fit_edge takes it.
+// The homography taking marker cells (u, v) (corners (0, 0), (cells, 0), (cells, cells),
+// (0, cells)) to q: the 8 x 8 linear system of the four point pairs, h33 = 1 (Hartley &
+// Zisserman, "Multiple View Geometry", 2nd ed., sec. 4.1).
+std::optional<Eigen::Matrix3d> image_from_marker(const std::array<Eigen::Vector2d, 4>& q, int cells) {
+  const double c = cells;
+  const std::array<Eigen::Vector2d, 4> m{Eigen::Vector2d(0, 0), {c, 0}, {c, c}, {0, c}};
+  Eigen::Matrix<double, 8, 8> A;
+  Eigen::Matrix<double, 8, 1> b;
+  for (int k = 0; k < 4; ++k) {
+    const double u = m[k].x(), v = m[k].y(), x = q[k].x(), y = q[k].y();
+    A.row(2 * k) << u, v, 1, 0, 0, 0, -u * x, -v * x;
+    A.row(2 * k + 1) << 0, 0, 0, u, v, 1, -u * y, -v * y;
+    b[2 * k] = x;
+    b[2 * k + 1] = y;
+  }
+  const Eigen::Matrix<double, 8, 1> h = A.fullPivLu().solve(b);
+  if (!h.allFinite()) return std::nullopt;
+  Eigen::Matrix3d H;
+  H << h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], 1;
+  if (!(std::abs(H.determinant()) > 1e-12)) return std::nullopt;
+  return H;
+}
+
+// The code cells next to edge e's border (markers.hpp's corner and edge order: edge e runs from
+// corner e to e + 1, TL TR BR BL), for a code of n x n cells (1 = white) inside a border of one cell.
+std::array<InnerCode, 4> inner_codes(const Eigen::Matrix3d& H, const cv::Mat& code, int cells,
+                                     const std::array<double, 4>& edge_length_px) {
+  const int n = code.rows;
+  const double c = cells;
+  std::array<InnerCode, 4> out;
+  for (int e = 0; e < 4; ++e) {
+    // marker_from_edge: (a, d) -> (u, v) for edge e.
+    Eigen::Matrix3d M;
+    switch (e) {
+      case 0: M << 1, 0, 0, 0, 1, 0, 0, 0, 1; break;       // u = a,     v = d
+      case 1: M << 0, -1, c, 1, 0, 0, 0, 0, 1; break;      // u = c - d, v = a
+      case 2: M << -1, 0, c, 0, -1, c, 0, 0, 1; break;     // u = c - a, v = c - d
+      default: M << 0, 1, 0, -1, 0, c, 0, 0, 1; break;     // u = d,     v = c - a
+    }
+    InnerCode& ic = out[static_cast<std::size_t>(e)];
+    ic.image_from_edge = H * M;
+    ic.edge_from_image = ic.image_from_edge.inverse();
+    ic.cell_px = edge_length_px[static_cast<std::size_t>(e)] / c;
+    for (int j = 0; j < n; ++j) {
+      int row = 0, col = 0;
+      switch (e) {
+        case 0: row = 0, col = j; break;
+        case 1: row = j, col = n - 1; break;
+        case 2: row = n - 1, col = n - 1 - j; break;
+        default: row = n - 1 - j, col = 0; break;
+      }
+      ic.white.push_back(code.at<std::uint8_t>(row, col) ? 1.0 : 0.0);
+    }
+  }
+  return out;
+}
+
 EdgeFit refine_pass(const cv::Mat& grey, const Levels& levels, const std::array<Eigen::Vector2d, 4>& q, int cells,
-                    int rounds, double corner_error_px, bool final_pass, const EdgeFitOptions& o) {
+                    int rounds, double corner_error_px, bool final_pass, const cv::Mat& code, const EdgeFitOptions& o) {
   EdgeFit result;
   result.corners = q;
   const Eigen::Vector2d centre = 0.25 * (q[0] + q[1] + q[2] + q[3]);
   std::array<EdgeFrame, 4> frames;
-  std::array<double, 4> window{};
+  std::array<double, 4> cell_px{};
   std::array<double, 4> sin_angle{};
   for (int e = 0; e < 4; ++e) {
     EdgeFrame& f = frames[e];
@@ -646,14 +765,23 @@ EdgeFit refine_pass(const cv::Mat& grey, const Levels& levels, const std::array<
       return result;
     }
   }
+  std::array<InnerCode, 4> codes;
+  if (!code.empty()) {
+    const auto H = image_from_marker(q, cells);
+    if (!H) {
+      result.failure = "degenerate quadrilateral";
+      return result;
+    }
+    codes = inner_codes(*H, code, cells, {frames[0].length, frames[1].length, frames[2].length, frames[3].length});
+  }
   for (int e = 0; e < 4; ++e) {
     // Across edge e, the marker extends as far as its neighbouring edges are long.
     const double across = std::min(frames[(e + 3) % 4].length, frames[(e + 1) % 4].length) / cells;
-    window[e] = std::clamp(o.window_cells * across, o.min_window_px, o.max_window_px);
+    cell_px[e] = across;
   }
   // fits[k][0]: the edge ending at corner k (edge k-1); fits[k][1]: the edge starting there (edge k).
   std::array<std::array<std::optional<EdgeCurve>, 2>, 4> fits;
-  double blur = 0;
+  double blur = 0, band = 0;
   result.contrast = 1e300;
   auto take = [&](const EdgeFitResult& r) -> std::optional<EdgeCurve> {
     if (!r.curve) {
@@ -662,6 +790,7 @@ EdgeFit refine_pass(const cv::Mat& grey, const Levels& levels, const std::array<
     }
     result.iterations += r.iterations;
     blur += r.curve->sigma;
+    band += r.curve->band_px;
     result.contrast = std::min(result.contrast, r.curve->contrast);
     result.residual = std::max(result.residual, r.curve->rms / r.curve->contrast);
     return r.curve;
@@ -679,7 +808,8 @@ EdgeFit refine_pass(const cv::Mat& grey, const Levels& levels, const std::array<
                                           NeighbourEdge{q[(e + 1) % 4], inward((e + 1) % 4, (e + 2) % 4),
                                                         sin_angle[(e + 1) % 4]}};
     auto fit = [&](double lo, double hi) {
-      return take(fit_edge(grey, levels, frames[e], lo, hi, nb, window[e], rounds, corner_error_px, final_pass, o));
+      return take(fit_edge(grey, levels, frames[e], lo, hi, nb, cell_px[e], rounds, corner_error_px, final_pass,
+                           code.empty() ? nullptr : &codes[static_cast<std::size_t>(e)], o));
     };
     if (o.span >= 1) {
       const auto curve = fit(0, L);
@@ -697,6 +827,7 @@ EdgeFit refine_pass(const cv::Mat& grey, const Levels& levels, const std::array<
     }
   }
   result.blur_px = blur / n_fits;
+  result.band_px = band / n_fits;
   for (int k = 0; k < 4; ++k) {
     const auto p = intersect(*fits[k][0], *fits[k][1], q[k]);
     if (!p) {
@@ -712,8 +843,11 @@ EdgeFit refine_pass(const cv::Mat& grey, const Levels& levels, const std::array<
 }  // namespace
 
 EdgeFit refine_marker_corners(const cv::Mat& grey, const std::array<Eigen::Vector2d, 4>& q, int cells,
-                              const EdgeFitOptions& o) {
+                              const EdgeFitOptions& o, const cv::Mat& code) {
   CV_Assert(grey.type() == CV_8UC1);
+  if (!code.empty() && (code.type() != CV_8UC1 || code.rows != cells - 2 || code.cols != cells - 2)) {
+    throw UsageError("a marker code must be (cells - 2) x (cells - 2) CV_8UC1");
+  }
   if (o.degree < 1 || o.degree > 3 || !(o.span > 0 && o.span <= 1) || !(o.gamma > 0) || !(o.initial_corner_error_px >= 0)) {
     throw UsageError("bad edge-fit options");
   }
@@ -723,9 +857,9 @@ EdgeFit refine_marker_corners(const cv::Mat& grey, const std::array<Eigen::Vecto
   // tolerance), then the fine pass with frames, bands and neighbours drawn through the coarse
   // corners. If the coarse pass fails (a small marker leaves too little edge clear of its
   // uncertain corners), the fine pass starts from OpenCV's corners with their uncertainty.
-  const EdgeFit coarse = refine_pass(grey, levels, q, cells, 1, o.initial_corner_error_px, false, o);
-  EdgeFit fine = coarse.ok ? refine_pass(grey, levels, coarse.corners, cells, 2, 0, true, o)
-                           : refine_pass(grey, levels, q, cells, 2, o.initial_corner_error_px, true, o);
+  const EdgeFit coarse = refine_pass(grey, levels, q, cells, 1, o.initial_corner_error_px, false, code, o);
+  EdgeFit fine = coarse.ok ? refine_pass(grey, levels, coarse.corners, cells, 2, 0, true, code, o)
+                           : refine_pass(grey, levels, q, cells, 2, o.initial_corner_error_px, true, code, o);
   fine.iterations += coarse.iterations;
   if (!fine.ok) return fine;
   double mean_side = 0;
@@ -790,7 +924,8 @@ MarkerDetection detect_markers(const cv::Mat& grey, const std::string& image_nam
       continue;
     }
     if (options.refinement == CornerRefinement::Edges) {
-      const EdgeFit fit = refine_marker_corners(grey, q, cells, options.edges);
+      const EdgeFit fit = refine_marker_corners(grey, q, cells, options.edges,
+                                                options.edges.model_code ? dictionary.code(id) : cv::Mat());
       if (!fit.ok) {
         out.rejected.push_back({id, fit.failure, q});
         continue;

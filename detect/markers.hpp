@@ -35,6 +35,9 @@ public:
   int marker_count() const;
   int bits_per_side() const;          // markersize: 4 for DICT_4X4_*
   int max_correction_bits() const;
+  // Marker `id`'s code: bits_per_side() x bits_per_side() CV_8UC1, 1 = white, rows top to bottom
+  // with the marker upright (corners TL TR BR BL as detect_markers returns them).
+  cv::Mat code(int id) const;
   // The OpenCV dictionary (OpenCV's detector takes it by non-const pointer; it is not modified).
   const std::shared_ptr<cv::aruco::Dictionary>& opencv() const { return dictionary_; }
 
@@ -65,7 +68,17 @@ CornerRefinement corner_refinement_from_name(const std::string& name);
 // form in markers.cpp), on a shading that varies linearly along and across the edge (light on a
 // curved part). Parameters x = [c_0..c_D, sigma, a0, a1, a2, b0, b1, b2], solved by
 // Levenberg-Marquardt (Madsen, Nielsen & Tingleff, "Methods for non-linear least squares
-// problems", 2004, sec. 3.2). Each corner is the intersection of its two edge curves (Newton's
+// problems", 2004, sec. 3.2).
+// The inner term: the black border is one cell wide, and inside it lie the code cells. Where a
+// small or blurred marker's band reaches the border's inner edge, a white code cell there lifts
+// the border's dark side, and a step model alone takes that for the edge (on OpenCV's photos, with
+// 3-4.5 px cells, the fit then depended on its start by 0.1-0.6 px, docs/measurements/detect.md).
+// With the decoded code known, the model is
+//   I = a + b [R(s - f) + k (1 - R(s - f + w_b))]
+// with w_b the border's width across the edge (from the homography through the corners) and k the
+// whiteness of the code cell next to the border at the pixel's place along the edge (0 black,
+// 1 white, blurred at the cell's ends). Far from the inner edge (big markers) the term is 0.
+// Each corner is the intersection of its two edge curves (Newton's
 // method in 2D). Curved edges come from lens distortion (~0.1 px sagitta for a 130 px edge near
 // the border at k1 = -0.08) and from markers stuck on a curved part: D starts at 3 and drops while
 // the top coefficient is not significant. Two passes: a coarse one around OpenCV's polygon, a fine
@@ -75,7 +88,9 @@ struct EdgeFitOptions {
   double degree_significance = 3; // ... lowered while |c_D| is below this many standard errors
   double span = 1.0;              // fraction of each edge, from the corner, fitted for that corner
                                   // (1: whole edges, shared by both corners; 0.5: local fits)
-  double window_cells = 0.5;      // band half-width w in marker cells (stays in the black border)
+  double window_cells = 0.5;      // band half-width w in marker cells (stays in the black border);
+  double band_plateau_px = 2;     // with the code modelled, widened to hold the blurred transition
+                                  // and this much level ground beyond it, up to one cell (markers.cpp)
   double min_window_px = 1.5;     // ... but at least
   double max_window_px = 4;       // ... and at most this (the plateaus beyond add little)
   int max_iterations = 30;        // Levenberg-Marquardt iterations per edge and round
@@ -95,6 +110,9 @@ struct EdgeFitOptions {
   // 255 (v / 255)^gamma. 1 for linear images (synth's renders, raw data); about 2.2 for sRGB
   // JPEGs, whose midtones otherwise move a blurred edge towards the dark side by roughly 0.8 sigma.
   double gamma = 1;
+  // Model the decoded code cells next to the border (the inner term above); false: the inside of
+  // the border is taken as black, as before.
+  bool model_code = true;
 };
 
 struct MarkerDetectOptions {
@@ -135,6 +153,7 @@ struct EdgeFit {
   std::string failure;                  // why not, when !ok
   std::array<Eigen::Vector2d, 4> corners;
   double blur_px = 0;                   // mean sigma of the four edges
+  double band_px = 0;                   // mean half-width of their bands
   double contrast = 0;                  // smallest b0 of the four edges
   double residual = 0;                  // largest RMS residual / contrast
   int iterations = 0;                   // Levenberg-Marquardt iterations of the edge fits, both passes
@@ -142,8 +161,10 @@ struct EdgeFit {
 
 // Refines the corners of one marker (initial corners TL TR BR BL from OpenCV; `cells` = bits per
 // side + 2 border cells). Never throws for a bad fit: ok = false with the reason.
+// `code`: the marker's decoded cells (MarkerDictionary::code), for the model's inner term; empty:
+// the inside of the border is taken as black.
 EdgeFit refine_marker_corners(const cv::Mat& grey, const std::array<Eigen::Vector2d, 4>& initial, int cells,
-                              const EdgeFitOptions& options);
+                              const EdgeFitOptions& options, const cv::Mat& code = cv::Mat());
 
 // Detects, identifies and refines the markers of one grey image (CV_8UC1). A marker id seen twice
 // in one image is dropped both times (one of them is a wrong decoding).

@@ -59,6 +59,9 @@ void add_photo_options(CLI::App& app, PhotoCli& c) {
   app.add_option("--edge-gamma", e.gamma,
                  "Edge fit: grey v is fitted as 255 (v/255)^gamma; 1 = linear images (synth), ~2.2 = sRGB JPEGs")
       ->group(markers)->capture_default_str()->check(CLI::Range(0.2, 5.0));
+  app.add_flag("--edge-ignore-code", [&e](std::int64_t) { e.model_code = false; },
+               "Edge fit: take the inside of the border as black instead of modelling the decoded code cells there")
+      ->group(markers);
   app.add_option("--aruco-error-correction", c.options.markers.error_correction_rate,
                  "OpenCV's errorCorrectionRate: share of the dictionary's correctable bits used")
       ->group(markers)->capture_default_str()->check(CLI::Range(0.0, 1.0));

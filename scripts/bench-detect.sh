@@ -8,7 +8,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 build=${1:-build}
 runs=${PHOTOMILL_BENCH_RUNS:-3}
-cmake --build "$build" --target detect match detect_marker_check detect_marker_bench detect_marker_stability match_track_check -j"$(nproc)" >/dev/null
+cmake --build "$build" --target detect match detect_marker_check detect_marker_bench detect_marker_stability detect_marker_board_check match_track_check -j"$(nproc)" >/dev/null
 bin=$build/bin
 tools=$build/tools/bin
 work=$(mktemp -d)
@@ -73,4 +73,10 @@ if [ -d "$aruco" ]; then
   echo "-- OpenCV's real ArUco photos (DICT_6X6_250, sRGB JPEGs):"
   "$tools/detect_marker_stability" "$aruco"/singlemarkersoriginal.jpg "$aruco"/img_0[0-3].jpg \
     --dictionary DICT_6X6_250 --gamma 2.2
+  echo "-- the same without the code cells (--edge-ignore-code):"
+  "$tools/detect_marker_stability" "$aruco"/singlemarkersoriginal.jpg "$aruco"/img_0[0-3].jpg \
+    --dictionary DICT_6X6_250 --gamma 2.2 --no-code-model
+  echo
+  echo "== markers on OpenCV's real ChArUco photos against the board's geometry (published calibration) =="
+  "$tools/detect_marker_board_check" "$aruco"/img_0[0-3].jpg --camera "$aruco"/tutorial_camera_charuco.yml
 fi

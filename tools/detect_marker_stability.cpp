@@ -6,7 +6,8 @@
 // off); the spread is how far a corner is determined by the photo rather than by the start. Prints,
 // per photo, the markers, their mean px per cell, the edge fit's mean blur and band half-width,
 // the corners' RMS and largest movement and the refits that failed, by reason (numbers shown as #);
-// --per-marker one line per marker. Needs no truth, so it runs on any photo (real sets included).
+// --per-marker one line per marker; --no-code-model fits without the code cells (markers.hpp).
+// Needs no truth, so it runs on any photo (real sets included).
 // Data on stdout. A photo with no refined marker, or whose refits all failed, says so instead of
 // figures; a run in which no photo had a corner to compare fails.
 #include <algorithm>
@@ -31,9 +32,9 @@ int main(int argc, char** argv) {
   std::vector<std::string> photos;
   std::string dictionary_name = "DICT_4X4_100";
   double jitter_px = 0.3, gamma = 1;
-  int trials = 10;
+  int trials = 10, degree = EdgeFitOptions{}.degree;
   unsigned seed = 1;
-  bool per_marker = false;
+  bool per_marker = false, no_code_model = false;
   return tool::run(
       argc, argv,
       {"detect_marker_stability", "How far the edge fit's marker corners move when its start moves",
@@ -45,15 +46,18 @@ int main(int argc, char** argv) {
             ->capture_default_str()->check(CLI::Range(0.2, 5.0));
         app.add_option("--jitter-px", jitter_px, "Standard deviation of each start coordinate's jitter, px")
             ->capture_default_str()->check(CLI::Range(0.0, 5.0));
+        app.add_option("--edge-degree", degree, "Edge fit: --edge-degree")->capture_default_str()->check(CLI::Range(1, 3));
         app.add_option("--trials", trials, "Jittered refits per marker")->capture_default_str()->check(CLI::Range(1, 1000));
         app.add_option("--seed", seed, "Random seed of the jitter")->capture_default_str();
         app.add_flag("--per-marker", per_marker, "Also one line per marker");
+        app.add_flag("--no-code-model", no_code_model, "Edge fit without the code cells inside the border (the inside taken as black)");
       },
       [&] {
         const auto dictionary = MarkerDictionary::predefined(dictionary_name);
         const int cells = dictionary.bits_per_side() + 2;
         EdgeFitOptions options;
         options.gamma = gamma;
+        options.degree = degree;
         std::mt19937 rng(seed);
         std::normal_distribution<double> jitter(0, jitter_px);
         std::cout << std::fixed << std::setprecision(4);
@@ -71,20 +75,19 @@ int main(int argc, char** argv) {
           for (std::size_t m = 0; m < ids.size(); ++m) {
             std::array<Eigen::Vector2d, 4> start;
             for (int c = 0; c < 4; ++c) start[c] = {polygons[m][c].x, polygons[m][c].y};
-            const EdgeFit reference = refine_marker_corners(grey, start, cells, options);
+            const cv::Mat code = no_code_model ? cv::Mat() : dictionary.code(ids[m]);
+            const EdgeFit reference = refine_marker_corners(grey, start, cells, options, code);
             if (!reference.ok) continue;
             double side = 0;
             for (int c = 0; c < 4; ++c) side += 0.25 * (start[(c + 1) % 4] - start[c]).norm();
             const double cell = side / cells;
-            // About the band half-width the fit chooses (EdgeFitOptions: window_cells, min, max;
-            // the fit takes each edge's shorter neighbour, this the mean side).
-            const double w = std::clamp(options.window_cells * cell, options.min_window_px, options.max_window_px);
+            const double w = reference.band_px;
             double marker_sq = 0, marker_max = 0;
             int marker_n = 0, marker_failed = 0;
             for (int t = 0; t < trials; ++t) {
               std::array<Eigen::Vector2d, 4> from = start;
               for (auto& p : from) p += Eigen::Vector2d(jitter(rng), jitter(rng));
-              const EdgeFit fit = refine_marker_corners(grey, from, cells, options);
+              const EdgeFit fit = refine_marker_corners(grey, from, cells, options, code);
               if (!fit.ok) {
                 ++marker_failed;
                 std::string reason;
