@@ -71,10 +71,11 @@ PhotoCheck check_charuco_photo(const cv::Mat& grey, const std::string& image_nam
   std::vector<cv::Point2f> chess_board, chess_image;
   for (const auto& p : board->chessboardCorners) chess_board.emplace_back(p.x, p.y);
   cv::perspectiveTransform(chess_board, chess_image, rough);
-  // Half-window a fifth of a square: clear of the markers, which keep a quarter of a square from
-  // the chessboard corners on this board layout.
-  const double square_px = std::sqrt(std::abs(cv::determinant(rough(cv::Rect(0, 0, 2, 2))))) * spec.square;
-  out.half_window_px = std::max(2, static_cast<int>(square_px / 5));
+  // Half-window a fifth of a square, and within 0.8 of the white margin between a chessboard corner
+  // and the nearest marker ((square - marker) / 2), so the window sees the saddle point only.
+  const double px_per_unit = std::sqrt(std::abs(cv::determinant(rough(cv::Rect(0, 0, 2, 2)))));
+  const double margin_px = 0.5 * (spec.square - spec.marker) * px_per_unit;
+  out.half_window_px = std::max(2, static_cast<int>(std::min(spec.square * px_per_unit / 5, 0.8 * margin_px)));
   cv::cornerSubPix(grey, chess_image, cv::Size(out.half_window_px, out.half_window_px), cv::Size(-1, -1),
                    cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 100, 0.001));
   const auto chess_undistorted = undistort(chess_image, K, dist);
