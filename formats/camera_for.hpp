@@ -24,18 +24,19 @@ inline RigMatch require_rig_prefix(const std::vector<std::string>& prefixes, con
                                   "): give its camera");
 }
 
-// The values of --camera-for (PREFIX=FILE) as (prefix, file); UsageError for a value without both
-// parts or a prefix given twice.
-inline std::vector<std::pair<std::string, std::string>> parse_camera_for(const std::vector<std::string>& values) {
+// The values of --camera-for (PREFIX=FILE; or of `option`, e.g. --refined-camera-for) as (prefix,
+// file); UsageError for a value without both parts or a prefix given twice.
+inline std::vector<std::pair<std::string, std::string>> parse_camera_for(const std::vector<std::string>& values,
+                                                                          const std::string& option = "--camera-for") {
   std::vector<std::pair<std::string, std::string>> out;
   std::set<std::string> seen;
   for (const std::string& v : values) {
     const auto eq = v.find('=');
     if (eq == std::string::npos || eq == 0 || eq + 1 == v.size()) {
-      throw UsageError("--camera-for '" + v + "': expected PREFIX=FILE (e.g. left=left.yaml)");
+      throw UsageError(option + " '" + v + "': expected PREFIX=FILE (e.g. left=left.yaml)");
     }
     out.emplace_back(v.substr(0, eq), v.substr(eq + 1));
-    if (!seen.insert(out.back().first).second) throw UsageError("--camera-for: prefix '" + out.back().first + "' given twice");
+    if (!seen.insert(out.back().first).second) throw UsageError(option + ": prefix '" + out.back().first + "' given twice");
   }
   return out;
 }

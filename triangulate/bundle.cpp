@@ -144,10 +144,12 @@ std::shared_ptr<ceres::ParameterBlockOrdering> build_problem(Scene& scene, const
                                                              const BundleOptions& options, ceres::Problem& problem,
                                                              BundleSummary& out) {
   const bool refine_intrinsics = options.refine_intrinsics != IntrinsicsRefinement::None;
-  // The refined intrinsics' block: the first block_size of the camera's (the rest held fixed).
-  // Self-calibration adjusts one camera (reconstruct refuses it with several).
-  double* intrinsics = scene.cameras.front().params.data();
-  const int block_size = intrinsics_block_size(options.refine_intrinsics, scene.cameras.front().distortion_count);
+  // Each camera's refined intrinsics: the first block_size of its parameters (the rest held
+  // fixed), shared by the photos taken with it.
+  std::vector<int> block_size(scene.cameras.size());
+  for (std::size_t k = 0; k < scene.cameras.size(); ++k) {
+    block_size[k] = intrinsics_block_size(options.refine_intrinsics, scene.cameras[k].distortion_count);
+  }
 
   const AdjustmentLayout layout = adjustment_layout(scene, setup, options.threads);
   const auto& active = layout.active;
@@ -164,13 +166,14 @@ std::shared_ptr<ceres::ParameterBlockOrdering> build_problem(Scene& scene, const
     for (std::size_t o : active[t]) {
       const ObservationRef& ob = scene.observations[o];
       double* pose = scene.images[ob.image].cam_from_world.data();
+      const std::size_t cam = scene.images[ob.image].camera;
       ceres::CostFunction* cost =
-          refine_intrinsics ? reprojection_error_with_intrinsics(block_size, shape_of(scene.cameras.front()), ob.uv_px, setup.sigma_of(ob))
+          refine_intrinsics ? reprojection_error_with_intrinsics(block_size[cam], shape_of(scene.cameras[cam]), ob.uv_px, setup.sigma_of(ob))
                             : ReprojectionError::create(&scene.camera_of(ob.image), ob.uv_px, setup.sigma_of(ob));
       // The loss acts on whitened residuals: its scale in pixels divided by the same sigma.
       ceres::LossFunction* loss = make_loss(options.loss, options.loss_scale_px / setup.sigma_of(ob));
       if (refine_intrinsics) {
-        problem.AddResidualBlock(cost, loss, pose, X, intrinsics);
+        problem.AddResidualBlock(cost, loss, pose, X, scene.cameras[cam].params.data());
       } else {
         problem.AddResidualBlock(cost, loss, pose, X);
       }
@@ -207,13 +210,15 @@ std::shared_ptr<ceres::ParameterBlockOrdering> build_problem(Scene& scene, const
       problem.SetManifold(pose, new ceres::SubsetManifold(6, {3 + setup.fixed_translation->second}));
     }
   }
-  if (refine_intrinsics && problem.HasParameterBlock(intrinsics)) {
+  for (std::size_t cam = 0; refine_intrinsics && cam < scene.cameras.size(); ++cam) {
+    double* intrinsics = scene.cameras[cam].params.data();
+    if (!problem.HasParameterBlock(intrinsics)) continue;
     ordering->AddElementToGroup(intrinsics, 1);
     std::vector<int> constant;
-    for (int k : constant_intrinsics(options.refine_intrinsics, scene.cameras.front().distortion_count)) {
-      if (k < block_size) constant.push_back(k);
+    for (int k : constant_intrinsics(options.refine_intrinsics, scene.cameras[cam].distortion_count)) {
+      if (k < block_size[cam]) constant.push_back(k);
     }
-    if (!constant.empty()) problem.SetManifold(intrinsics, new ceres::SubsetManifold(block_size, constant));
+    if (!constant.empty()) problem.SetManifold(intrinsics, new ceres::SubsetManifold(block_size[cam], constant));
   }
   out.residual_blocks = static_cast<std::size_t>(problem.NumResidualBlocks());
   return ordering;
@@ -250,8 +255,11 @@ BundleSummary bundle_adjust(Scene& scene, const BundleSetup& setup, const Bundle
   // Schur eliminator locks each block of the reduced system a point updates, so two threads
   // queue on that block for every point and are slower than one (docs/measurements/triangulate.md,
   // session 53). Without a shared block the threads asked for.
-  const bool shared_block = options.refine_intrinsics != IntrinsicsRefinement::None &&
-                            problem.HasParameterBlock(scene.cameras.front().params.data());
+  bool shared_block = false;
+  for (const CameraModel& camera : scene.cameras) {
+    shared_block = shared_block || (options.refine_intrinsics != IntrinsicsRefinement::None &&
+                                    problem.HasParameterBlock(camera.params.data()));
+  }
   so.num_threads = shared_block ? 1 : geometry::thread_count(options.threads);
   so.logging_type = ceres::SILENT;
   so.minimizer_progress_to_stdout = false;

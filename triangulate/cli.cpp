@@ -80,6 +80,10 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--report", c.report, "Write the report as JSON here (it also goes to stderr as text)");
   app.add_option("--colmap", c.colmap, "Write a COLMAP text model (cameras.txt, images.txt, points3D.txt) into this folder");
   app.add_option("--refined-camera", c.refined_camera, "Write the camera.yaml after --refine-intrinsics here");
+  app.add_option("--refined-camera-for", c.refined_camera_for,
+                 "PREFIX=FILE: with several cameras (--camera-for, --rig), write the camera.yaml of the camera of "
+                 "PREFIX after --refine-intrinsics to FILE; repeatable")
+      ->allow_extra_args(false)->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   app.add_option("--preview", c.preview,
                  "Write a PNG of the points (coloured by quality) and the cameras, oblique and from above, here");
   app.add_option("--preview-colour", c.preview_options.colour_by,
@@ -230,10 +234,24 @@ ReconstructOptions to_options(const Cli& c) {
   if (!c.refined_camera.empty() && o.bundle.refine_intrinsics == IntrinsicsRefinement::None) {
     throw UsageError("--refined-camera needs --refine-intrinsics");
   }
+  if (!c.refined_camera_for.empty() && o.bundle.refine_intrinsics == IntrinsicsRefinement::None) {
+    throw UsageError("--refined-camera-for needs --refine-intrinsics");
+  }
+  const bool several_cameras = !c.camera_for.empty() || !c.rig.empty();
+  if (!c.refined_camera.empty() && several_cameras) {
+    throw UsageError("--refined-camera writes one camera; with several (--camera-for, --rig) write each with "
+                     "--refined-camera-for PREFIX=FILE");
+  }
+  if (!c.refined_camera_for.empty() && !several_cameras) {
+    throw UsageError("--refined-camera-for names one of several cameras (--camera-for, --rig); with --camera write it "
+                     "with --refined-camera FILE");
+  }
+  const auto refined_for = parse_camera_for(c.refined_camera_for, "--refined-camera-for");
   if (c.preview == "-") throw UsageError("--preview writes a PNG file, never to stdout");
   if (!c.preview.empty()) validate(c.preview_options);
   int to_stdout = 0;
   for (const std::string* p : {&c.output, &c.poses, &c.report, &c.refined_camera}) to_stdout += *p == "-" ? 1 : 0;
+  for (const auto& pf : refined_for) to_stdout += pf.second == "-" ? 1 : 0;
   if (c.output.empty()) ++to_stdout;
   if (to_stdout > 1) throw UsageError("only one output can go to stdout ('-')");
   int from_stdin = 0;
@@ -244,6 +262,21 @@ ReconstructOptions to_options(const Cli& c) {
     throw UsageError("only one input can come from stdin ('-')");
   }
   return o;
+}
+
+std::vector<std::pair<std::string, std::size_t>> refined_camera_files(const Cli& c, const ReconstructInput& in) {
+  std::vector<std::pair<std::string, std::size_t>> out;
+  for (const auto& [prefix, file] : parse_camera_for(c.refined_camera_for, "--refined-camera-for")) {
+    std::string list;
+    std::size_t k = 0;
+    for (; k < in.cameras.size() && in.cameras[k].prefix != prefix; ++k) {}
+    if (k == in.cameras.size()) {
+      for (const auto& pc : in.cameras) list += (list.empty() ? "'" : ", '") + pc.prefix + "'";
+      throw UsageError("--refined-camera-for: '" + prefix + "' is none of the cameras' prefixes (" + list + ")");
+    }
+    out.emplace_back(file, k);
+  }
+  return out;
 }
 
 ReconstructInput read_input(const Cli& c) {

@@ -25,6 +25,7 @@ struct Cli {
   std::string report;
   std::string colmap;
   std::string refined_camera;
+  std::vector<std::string> refined_camera_for;  // PREFIX=FILE, several cameras
   std::string preview;            // PNG of the cloud and the cameras
   PreviewOptions preview_options;
   std::string loss = "huber";
@@ -42,6 +43,9 @@ void add_options(CLI::App& app, Cli& cli);
 ReconstructOptions to_options(const Cli& cli);
 // Reads the input files named on the command line; throws InputError naming file and line.
 ReconstructInput read_input(const Cli& cli);
+// --refined-camera-for's files, each with the index of its camera in `input.cameras`; UsageError
+// for a prefix that is none of the cameras'.
+std::vector<std::pair<std::string, std::size_t>> refined_camera_files(const Cli& cli, const ReconstructInput& input);
 // Known poses from photomill's poses CSV (header image,qw,...) or COLMAP's images.txt, told apart
 // by the first line that is not blank or a comment; lines receives each pose's line.
 std::vector<Pose> read_known_poses(std::istream& in, const std::string& source, std::vector<std::size_t>* lines);

@@ -134,9 +134,18 @@ const std::vector<ErrorCase> kErrors = {
     {"image_of_no_camera",
      [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "--camera-for", "view_1=" + f.path("camera.yaml"), "--control-points", f.path("control.csv"), "-o", f.path("cloud.ply")}; },
      1, "' starts with none of the cameras' prefixes ('view_1'): give its camera"},
-    {"several_cameras_self_calibrated",
-     [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "--camera-for", "view_0=" + f.path("camera.yaml"), "--camera-for", "view_1=" + f.path("camera.yaml"), "--control-points", f.path("control.csv"), "--refine-intrinsics", "all", "-o", f.path("cloud.ply")}; },
-     2, "--refine-intrinsics adjusts one camera"},
+    {"several_cameras_one_refined_camera",
+     [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "--camera-for", "view_0=" + f.path("camera.yaml"), "--camera-for", "view_1=" + f.path("camera.yaml"), "--control-points", f.path("control.csv"), "--refine-intrinsics", "all", "--refined-camera", f.path("k.yaml"), "-o", f.path("cloud.ply")}; },
+     2, "--refined-camera writes one camera; with several (--camera-for, --rig) write each with --refined-camera-for PREFIX=FILE"},
+    {"refined_camera_for_unknown_prefix",
+     [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "--camera-for", "view_0=" + f.path("camera.yaml"), "--camera-for", "view_1=" + f.path("camera.yaml"), "--control-points", f.path("control.csv"), "--refine-intrinsics", "all", "--refined-camera-for", "left=" + f.path("k.yaml"), "-o", f.path("cloud.ply")}; },
+     2, "--refined-camera-for: 'left' is none of the cameras' prefixes ('view_0', 'view_1')"},
+    {"refined_camera_for_one_camera",
+     [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "-c", f.path("camera.yaml"), "--control-points", f.path("control.csv"), "--refine-intrinsics", "all", "--refined-camera-for", "view_0=" + f.path("k.yaml"), "-o", f.path("cloud.ply")}; },
+     2, "--refined-camera-for names one of several cameras"},
+    {"refined_camera_for_without_refinement",
+     [](SceneFiles& f) { return std::vector<std::string>{f.path("tracks.csv"), "--camera-for", "view_0=" + f.path("camera.yaml"), "--camera-for", "view_1=" + f.path("camera.yaml"), "--control-points", f.path("control.csv"), "--refined-camera-for", "view_0=" + f.path("k.yaml"), "-o", f.path("cloud.ply")}; },
+     2, "--refined-camera-for needs --refine-intrinsics"},
     {"rig_and_known_poses",
      [](SceneFiles& f) {
        f.write("rig.yaml", [&](std::ostream& s) {
@@ -162,6 +171,27 @@ const std::vector<ErrorCase> kErrors = {
 };
 
 INSTANTIATE_TEST_SUITE_P(Triangulate, TriangulateCliError, ::testing::ValuesIn(kErrors));
+
+// Several cameras self-calibrated (issue 23): each camera's refined camera.yaml is written where
+// --refined-camera-for names it, and the report lists each by its prefix.
+TEST(TriangulateCli, WritesEachRefinedCameraOfSeveral) {
+  SceneFiles f;
+  const auto r = run_tool("triangulate", {f.path("tracks.csv"), "--camera-for", "view_0=" + f.path("camera.yaml"),
+                                          "--camera-for", "view_1=" + f.path("camera.yaml"), "--control-points",
+                                          f.path("control.csv"), "--refine-intrinsics", "focal", "--refined-camera-for",
+                                          "view_1=" + f.path("k1.yaml"), "--refined-camera-for", "view_0=" + f.path("k0.yaml"),
+                                          "--report", f.path("report.json"), "-o", f.path("cloud.ply")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  for (const char* name : {"k0.yaml", "k1.yaml"}) {
+    std::ifstream in(f.path(name));
+    const Camera k = read_camera_yaml(in, name);
+    EXPECT_NEAR(k.fx(), f.truth().camera.fx(), 2e-3 * f.truth().camera.fx()) << name;
+  }
+  const std::string report = photomill::test::read_file(f.path("report.json"));
+  EXPECT_NE(report.find("\"refined_cameras\":[{\"prefix\":\"view_0\",\"camera\":["), std::string::npos) << report;
+  EXPECT_NE(report.find("{\"prefix\":\"view_1\",\"camera\":["), std::string::npos) << report;
+  EXPECT_EQ(report.find("\"refined_camera\":"), std::string::npos) << report;
+}
 
 TEST(TriangulateCli, WritesEveryOutput) {
   SceneFiles f;

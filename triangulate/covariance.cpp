@@ -44,7 +44,7 @@ bool observation_jacobian(const Scene& scene, const ObservationRef& ob, double i
 // the parameter is constant or eliminated.
 struct Columns {
   std::vector<std::array<int, 6>> pose;                // per image
-  std::array<int, kIntrinsicCount> intrinsics{};
+  std::vector<std::array<int, kIntrinsicCount>> intrinsics;  // per camera
   std::vector<std::array<int, 3>> point;               // per track, f-points only
   std::vector<char> eliminated;                        // per track: an e-point
   std::vector<char> variable;                          // per track: point is a free parameter
@@ -56,7 +56,9 @@ Columns assign_columns(const Scene& scene, const BundleSetup& setup, const Bundl
                        const AdjustmentLayout& layout) {
   Columns c;
   c.pose.assign(scene.images.size(), {-1, -1, -1, -1, -1, -1});
-  c.intrinsics.fill(-1);
+  std::array<int, kIntrinsicCount> none{};
+  none.fill(-1);
+  c.intrinsics.assign(scene.cameras.size(), none);
   c.point.assign(scene.tracks.size(), {-1, -1, -1});
   c.eliminated.assign(scene.tracks.size(), 0);
   c.variable.assign(scene.tracks.size(), 0);
@@ -69,12 +71,20 @@ Columns assign_columns(const Scene& scene, const BundleSetup& setup, const Bundl
     }
   }
   if (bundle.refine_intrinsics != IntrinsicsRefinement::None) {
-    std::vector<char> constant(kIntrinsicCount, 0);
-    for (int k : constant_intrinsics(bundle.refine_intrinsics, scene.cameras.front().distortion_count)) {
-      constant[static_cast<std::size_t>(k)] = 1;
+    // Each camera seen by an image in the adjustment has its own columns.
+    std::vector<char> camera_used(scene.cameras.size(), 0);
+    for (std::size_t i = 0; i < scene.images.size(); ++i) {
+      if (layout.image_used[i]) camera_used[scene.images[i].camera] = 1;
     }
-    for (int k = 0; k < kIntrinsicCount; ++k) {
-      if (!constant[static_cast<std::size_t>(k)]) c.intrinsics[static_cast<std::size_t>(k)] = c.f++;
+    for (std::size_t cam = 0; cam < scene.cameras.size(); ++cam) {
+      if (!camera_used[cam]) continue;
+      std::vector<char> constant(kIntrinsicCount, 0);
+      for (int k : constant_intrinsics(bundle.refine_intrinsics, scene.cameras[cam].distortion_count)) {
+        constant[static_cast<std::size_t>(k)] = 1;
+      }
+      for (int k = 0; k < kIntrinsicCount; ++k) {
+        if (!constant[static_cast<std::size_t>(k)]) c.intrinsics[cam][static_cast<std::size_t>(k)] = c.f++;
+      }
     }
   }
   for (std::size_t t = 0; t < scene.tracks.size(); ++t) {
@@ -127,7 +137,7 @@ SplitJacobian split(const Scene& scene, const Columns& c, bool with_intrinsics, 
   }
   if (with_intrinsics) {
     for (int k = 0; k < kIntrinsicCount; ++k) {
-      const int col = c.intrinsics[static_cast<std::size_t>(k)];
+      const int col = c.intrinsics[scene.images[ob.image].camera][static_cast<std::size_t>(k)];
       if (col >= 0) {
         s.idx.push_back(col);
         local.push_back(9 + k);

@@ -3,6 +3,8 @@
 // (PLY, -o or stdout), and on request the poses CSV, a JSON report, a COLMAP text model and a
 // PNG preview.
 // The report also goes to stderr. See docs/triangulate.md.
+#include <deque>
+
 #include "formats/log.hpp"
 #include "formats/tool.hpp"
 #include "triangulate/cli.hpp"
@@ -19,6 +21,7 @@ int main(int argc, char** argv) {
       [&] {
         const triangulate::ReconstructOptions options = triangulate::to_options(cli);
         const triangulate::ReconstructInput input = triangulate::read_input(cli);
+        const auto refined_for = triangulate::refined_camera_files(cli, input);
         if (!cli.colmap.empty()) {
           if (input.cameras.empty()) triangulate::check_colmap_camera(input.camera, input.camera_source);
           for (const auto& c : input.cameras) triangulate::check_colmap_camera(c.camera, c.source);
@@ -36,6 +39,8 @@ int main(int argc, char** argv) {
         if (!cli.poses.empty()) write_poses(poses.emplace(cli.poses).stream(), triangulate::registered_poses(result));
         if (!cli.report.empty()) triangulate::write_report_json(report.emplace(cli.report).stream(), result.report);
         if (!cli.refined_camera.empty()) write_camera_yaml(camera.emplace(cli.refined_camera).stream(), result.camera);
+        std::deque<tool::OutputFile> cameras;  // not movable: a deque keeps them in place
+        for (const auto& [file, k] : refined_for) write_camera_yaml(cameras.emplace_back(file).stream(), result.cameras[k]);
         if (!cli.preview.empty()) triangulate::write_preview(preview.emplace(cli.preview).stream(), result, cli.preview_options);
         triangulate::ColmapModelFiles colmap(cli.colmap);
         if (!cli.colmap.empty()) colmap.write(result);
@@ -44,6 +49,7 @@ int main(int argc, char** argv) {
         for (auto* f : {&poses, &report, &camera, &preview}) {
           if (*f) (*f)->commit();
         }
+        for (auto& f : cameras) f.commit();
         colmap.commit();
       });
 }

@@ -1017,8 +1017,15 @@ void Pipeline::finish(Reconstruction& r) {
   }
   r.camera = r.cameras.front();
   if (o_.bundle.refine_intrinsics != IntrinsicsRefinement::None) {
-    rep.refined_camera = {r.camera.fx(), r.camera.fy(), r.camera.cx(), r.camera.cy()};
-    rep.refined_camera.insert(rep.refined_camera.end(), r.camera.distortion.begin(), r.camera.distortion.end());
+    auto values = [](const Camera& c) {
+      std::vector<double> v{c.fx(), c.fy(), c.cx(), c.cy()};
+      v.insert(v.end(), c.distortion.begin(), c.distortion.end());
+      return v;
+    };
+    if (r.cameras.size() == 1) rep.refined_camera = values(r.camera);
+    for (std::size_t k = 0; k < r.cameras.size() && r.cameras.size() > 1; ++k) {
+      rep.refined_cameras.push_back({input_.cameras[k].prefix, values(r.cameras[k])});
+    }
   }
 }
 
@@ -1037,10 +1044,6 @@ Reconstruction Pipeline::run() {
     for (const PrefixCamera& c : input_.cameras) {
       cameras.push_back(to_camera_model(c.camera, c.source));
       prefixes.push_back(c.prefix);
-    }
-    if (o_.bundle.refine_intrinsics != IntrinsicsRefinement::None && cameras.size() > 1) {
-      throw UsageError("--refine-intrinsics adjusts one camera; with several cameras calibrate each (calib, or calib "
-                       "--rig) and leave it out");
     }
   }
   if (input_.known_poses.empty() && input_.control_points.empty() && input_.scale_bars.empty() &&

@@ -81,6 +81,18 @@ void write_report_json(std::ostream& out, const Report& r) {
     for (double v : r.refined_camera) j.value(v);
     j.end_array();
   }
+  if (!r.refined_cameras.empty()) {
+    j.key("refined_cameras").begin_array();
+    for (const auto& [prefix, values] : r.refined_cameras) {
+      j.begin_object();
+      j.field("prefix", prefix);
+      j.key("camera").begin_array();
+      for (double v : values) j.value(v);
+      j.end_array();
+      j.end_object();
+    }
+    j.end_array();
+  }
   j.key("per_image").begin_array();
   for (const ImageReport& im : r.per_image) {
     j.begin_object();

@@ -7,6 +7,7 @@
 #include <optional>
 #include <ostream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "formats/tables.hpp"
@@ -114,6 +115,8 @@ struct Report {
   std::vector<std::string> warnings;
   // Intrinsics after self-calibration (when refined): fx fy cx cy and distortion, OpenCV order.
   std::vector<double> refined_camera;
+  // The same per camera when there are several (--camera-for, --rig): (prefix, values).
+  std::vector<std::pair<std::string, std::vector<double>>> refined_cameras;
 };
 
 void write_report_json(std::ostream& out, const Report& report);
