@@ -42,4 +42,16 @@ inline PoseBlock make_pose(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
   return p;
 }
 
+// a_from_c = a_from_b * b_from_c: R = R_ab R_bc, t = R_ab t_bc + t_ab.
+inline PoseBlock compose(const PoseBlock& a_from_b, const PoseBlock& b_from_c) {
+  const Eigen::Matrix3d R = rotation_of(a_from_b);
+  return make_pose(R * rotation_of(b_from_c), R * translation_of(b_from_c) + translation_of(a_from_b));
+}
+
+// b_from_a of a_from_b: R^T, -R^T t.
+inline PoseBlock inverse(const PoseBlock& a_from_b) {
+  const Eigen::Matrix3d Rt = rotation_of(a_from_b).transpose();
+  return make_pose(Rt, -Rt * translation_of(a_from_b));
+}
+
 }  // namespace photomill::geometry

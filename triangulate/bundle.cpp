@@ -167,11 +167,23 @@ std::shared_ptr<ceres::ParameterBlockOrdering> build_problem(Scene& scene, const
       const ObservationRef& ob = scene.observations[o];
       double* pose = scene.images[ob.image].cam_from_world.data();
       const std::size_t cam = scene.images[ob.image].camera;
+      // The loss acts on whitened residuals: its scale in pixels divided by the same sigma.
+      ceres::LossFunction* loss = make_loss(options.loss, options.loss_scale_px / setup.sigma_of(ob));
+      if (setup.in_rig(scene, ob.image)) {
+        double* rig_pose = scene.rig->rig_from_world[static_cast<std::size_t>(scene.images[ob.image].frame)].data();
+        double* cam_pose = scene.rig->cam_from_rig[cam].data();
+        ceres::CostFunction* rig_cost =
+            rig_reprojection_error(scene.cameras[cam], refine_intrinsics ? block_size[cam] : 0, ob.uv_px, setup.sigma_of(ob));
+        if (refine_intrinsics) {
+          problem.AddResidualBlock(rig_cost, loss, rig_pose, cam_pose, X, scene.cameras[cam].params.data());
+        } else {
+          problem.AddResidualBlock(rig_cost, loss, rig_pose, cam_pose, X);
+        }
+        continue;
+      }
       ceres::CostFunction* cost =
           refine_intrinsics ? reprojection_error_with_intrinsics(block_size[cam], shape_of(scene.cameras[cam]), ob.uv_px, setup.sigma_of(ob))
                             : ReprojectionError::create(&scene.camera_of(ob.image), ob.uv_px, setup.sigma_of(ob));
-      // The loss acts on whitened residuals: its scale in pixels divided by the same sigma.
-      ceres::LossFunction* loss = make_loss(options.loss, options.loss_scale_px / setup.sigma_of(ob));
       if (refine_intrinsics) {
         problem.AddResidualBlock(cost, loss, pose, X, scene.cameras[cam].params.data());
       } else {
@@ -198,6 +210,10 @@ std::shared_ptr<ceres::ParameterBlockOrdering> build_problem(Scene& scene, const
   }
   for (std::size_t i = 0; i < scene.images.size(); ++i) {
     if (!image_used[i]) continue;
+    if (setup.in_rig(scene, i)) {
+      ++out.images;
+      continue;  // posed by its frame and camera, below
+    }
     double* pose = scene.images[i].cam_from_world.data();
     ordering->AddElementToGroup(pose, 1);
     ++out.images;
@@ -208,6 +224,26 @@ std::shared_ptr<ceres::ParameterBlockOrdering> build_problem(Scene& scene, const
       problem.AddResidualBlock(PosePrior::create(known->cam_from_world, known->sigma_mm, known->sigma_rad), nullptr, pose);
     } else if (setup.fixed_translation && setup.fixed_translation->first == i) {
       problem.SetManifold(pose, new ceres::SubsetManifold(6, {3 + setup.fixed_translation->second}));
+    }
+  }
+  if (setup.use_rig && scene.rig) {
+    SceneRig& rig = *scene.rig;
+    for (std::size_t f = 0; f < rig.rig_from_world.size(); ++f) {
+      double* block = rig.rig_from_world[f].data();
+      if (!problem.HasParameterBlock(block)) continue;
+      ordering->AddElementToGroup(block, 1);
+      if (f == setup.rig_reference_frame) problem.SetParameterBlockConstant(block);
+    }
+    for (std::size_t k = 0; k < rig.cam_from_rig.size(); ++k) {
+      double* block = rig.cam_from_rig[k].data();
+      if (!problem.HasParameterBlock(block)) continue;
+      ordering->AddElementToGroup(block, 1);
+      const bool prior = k > 0 && k < setup.cam_from_rig_sigma.size() && setup.cam_from_rig_sigma[k];
+      if (prior) {
+        problem.AddResidualBlock(RigPosePrior::create(setup.cam_from_rig_given[k], *setup.cam_from_rig_sigma[k]), nullptr, block);
+      } else {
+        problem.SetParameterBlockConstant(block);
+      }
     }
   }
   for (std::size_t cam = 0; refine_intrinsics && cam < scene.cameras.size(); ++cam) {
@@ -266,6 +302,14 @@ BundleSummary bundle_adjust(Scene& scene, const BundleSetup& setup, const Bundle
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
 
+  // The photos taken with the rig get the poses its frame and camera give.
+  for (std::size_t i = 0; i < scene.images.size(); ++i) {
+    if (!setup.in_rig(scene, i)) continue;
+    SceneImage& im = scene.images[i];
+    const SceneRig& rig = *scene.rig;
+    if (!rig.frame_placed[static_cast<std::size_t>(im.frame)]) continue;
+    im.cam_from_world = compose(rig.cam_from_rig[im.camera], rig.rig_from_world[static_cast<std::size_t>(im.frame)]);
+  }
   out.iterations = static_cast<int>(summary.iterations.size()) - 1;
   out.seconds = summary.total_time_in_seconds;
   out.initial_cost = summary.initial_cost;

@@ -84,6 +84,17 @@ struct BundleSetup {
     }
     return nullptr;
   }
+  // The rig (Scene::rig): the photos of its frames are posed by rig_from_world x cam_from_rig.
+  // The reference frame's rig pose is constant (the rig's frame there is the world), and so is
+  // camera 0's pose in the rig (the rig's frame is camera 0's); another camera's pose in the rig
+  // is held by RigPosePrior with its calibration's sigma, or constant without one.
+  bool use_rig = false;
+  std::size_t rig_reference_frame = 0;
+  std::vector<PoseBlock> cam_from_rig_given;                                   // per camera
+  std::vector<std::optional<Eigen::Matrix<double, 6, 1>>> cam_from_rig_sigma;  // deg x3, mm x3
+  bool in_rig(const Scene& scene, std::size_t image) const {
+    return use_rig && scene.rig && scene.images[image].frame >= 0;
+  }
   // True if the image's pose is a constant of the adjustment.
   bool pose_fixed(std::size_t image) const {
     if (fix_poses || (fixed_image && *fixed_image == image)) return true;

@@ -310,22 +310,28 @@ ReconstructInput read_input(const Cli& c) {
       check_inside_camera_image(by_camera[k], in.tracks_source, in.cameras[k].camera, in.cameras[k].source);
     }
     if (rig) {
-      // The photos of one frame, placed by the rig: the rig's frame is the world.
-      std::set<std::string> frames;
+      // The photos of each frame share the rig's pose. The reference frame, the first (in name
+      // order) with photos from two or more of the rig's cameras, is placed by the rig: the rig's
+      // frame there is the world, and the rig's baseline the scale.
+      std::map<std::string, std::set<std::size_t>> frames;
       std::map<std::string, std::size_t> image_camera;
       for (const auto& t : in.tracks) {
         const RigMatch m = require_rig_prefix(prefixes, t.image, in.tracks_source);
-        frames.insert(m.frame);
+        frames[m.frame].insert(m.camera);
         image_camera[t.image] = m.camera;
       }
-      if (frames.size() > 1) {
+      const auto reference = std::find_if(frames.begin(), frames.end(), [](const auto& f) { return f.second.size() >= 2; });
+      if (reference == frames.end()) {
         throw InputError(in.tracks_source, 0,
-                         "the photos are " + std::to_string(frames.size()) + " frames of the rig ('" + *frames.begin() +
-                             "', '" + *std::next(frames.begin()) + "'...): triangulate places one frame by the rig so "
-                             "far; run it per frame, or give the cameras alone with --camera-for PREFIX=FILE");
+                         "no frame of the rig has photos from two of its cameras (" + std::to_string(frames.size()) +
+                             " frames, e.g. '" + frames.begin()->first + "'): the rig places a frame's photos by "
+                             "their cameras' relative poses; check the names against the rig's prefixes");
       }
+      in.rig = *rig;
+      in.rig_reference_frame = reference->first;
       in.known_poses_source = tool::source_name(c.rig);
       for (const auto& [image, k] : image_camera) {
+        if (require_rig_prefix(prefixes, image, in.tracks_source).frame != in.rig_reference_frame) continue;
         Pose p;
         p.image = image;
         p.cam_from_world_rotation = Eigen::Quaterniond(rig->cameras[k].cam_from_rig_rotation).normalized();

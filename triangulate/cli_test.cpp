@@ -157,7 +157,7 @@ const std::vector<ErrorCase> kErrors = {
        return std::vector<std::string>{f.path("tracks.csv"), "--rig", f.path("rig.yaml"), "--known-poses", f.path("tracks.csv"), "-o", f.path("cloud.ply")};
      },
      2, "--rig places the photos by the rig's relative poses; --known-poses would replace them"},
-    {"rig_of_several_frames",
+    {"rig_without_a_shared_frame",
      [](SceneFiles& f) {
        f.write("rig.yaml", [&](std::ostream& s) {
          Rig rig;
@@ -167,7 +167,7 @@ const std::vector<ErrorCase> kErrors = {
        });
        return std::vector<std::string>{f.path("tracks.csv"), "--rig", f.path("rig.yaml"), "-o", f.path("cloud.ply")};
      },
-     1, "frames of the rig ('00.png', '01.png'...): triangulate places one frame by the rig so far; run it per frame"},
+     1, "no frame of the rig has photos from two of its cameras (12 frames, e.g. '00.png')"},
 };
 
 INSTANTIATE_TEST_SUITE_P(Triangulate, TriangulateCliError, ::testing::ValuesIn(kErrors));
@@ -191,6 +191,34 @@ TEST(TriangulateCli, WritesEachRefinedCameraOfSeveral) {
   EXPECT_NE(report.find("\"refined_cameras\":[{\"prefix\":\"view_0\",\"camera\":["), std::string::npos) << report;
   EXPECT_NE(report.find("{\"prefix\":\"view_1\",\"camera\":["), std::string::npos) << report;
   EXPECT_EQ(report.find("\"refined_camera\":"), std::string::npos) << report;
+}
+
+// A stereo rig over six frames (issue 23): every photo posed, the report says how, the cloud is
+// in the rig's frame at frame 00 and in mm (the rig's baseline is the scale).
+TEST(TriangulateCli, RigOverSeveralFrames) {
+  const test::RigSceneTruth t = test::make_rig_scene(6, 0.05, 5);
+  TempDir dir;
+  const auto p = [&](const char* name) { return (dir.path() / name).string(); };
+  {
+    std::ofstream rig(p("rig.yaml"));
+    write_rig_yaml(rig, t.rig);
+    std::ofstream tracks(p("tracks.csv"));
+    write_tracks(tracks, t.tracks);
+  }
+  const auto r = run_tool("triangulate", {p("tracks.csv"), "--rig", p("rig.yaml"), "--report", p("report.json"), "--poses",
+                                          p("poses.csv"), "-o", p("cloud.ply")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("rig: 6 of 6 frames placed, frame 00.png is the world"), std::string::npos) << r.err;
+  const std::string report = photomill::test::read_file(dir.path() / "report.json");
+  EXPECT_NE(report.find("\"rig\":{\"frames\":6,\"frames_placed\":6,\"reference_frame\":\"00.png\""), std::string::npos) << report;
+  std::ifstream poses_in(p("poses.csv"));
+  const std::vector<Pose> poses = read_poses(poses_in, "poses.csv");
+  ASSERT_EQ(poses.size(), 12u);
+  for (const Pose& got : poses) {
+    const auto truth = std::find_if(t.poses.begin(), t.poses.end(), [&](const Pose& q) { return q.image == got.image; });
+    ASSERT_NE(truth, t.poses.end()) << got.image;
+    EXPECT_LT((got.centre_mm() - truth->centre_mm()).norm(), 0.1) << got.image;
+  }
 }
 
 TEST(TriangulateCli, WritesEveryOutput) {

@@ -58,6 +58,9 @@ private:
   bool register_from_control();
   void start_incremental();
   void grow();
+  void set_up_rig();
+  std::size_t place_rig_frames();
+  void report_rig();
   bool register_by_relative_pose(const std::set<std::size_t>& skip);
   void shared_points(std::size_t a, std::size_t b, std::vector<Eigen::Vector2d>& xa,
                      std::vector<Eigen::Vector2d>& xb) const;
@@ -132,6 +135,104 @@ void Pipeline::check_input() {
     throw GeometryError(input_.tracks_source + ": all points lie on a line (in every image the observations are "
                         "collinear), so the camera poses are not determined; points must span a plane or a volume");
   }
+}
+
+// The rig's frames (ReconstructInput::rig): each photo's frame from its name, the cameras' poses
+// in the rig from rig.yaml, the reference frame's rig pose the identity (its photos' known poses
+// are the rig's own, so the world is the rig's frame there).
+void Pipeline::set_up_rig() {
+  if (!input_.rig) return;
+  std::vector<std::string> prefixes;
+  for (const PrefixCamera& c : input_.cameras) prefixes.push_back(c.prefix);
+  SceneRig rig;
+  std::map<std::string, std::size_t> frame_index;
+  for (SceneImage& im : scene_.images) {
+    const std::string frame = require_rig_prefix(prefixes, im.name, input_.tracks_source).frame;
+    const auto [it, added] = frame_index.emplace(frame, rig.frames.size());
+    if (added) rig.frames.push_back(frame);
+    im.frame = static_cast<std::ptrdiff_t>(it->second);
+  }
+  rig.rig_from_world.assign(rig.frames.size(), PoseBlock{});
+  rig.frame_placed.assign(rig.frames.size(), 0);
+  setup_.rig_reference_frame = frame_index.at(input_.rig_reference_frame);
+  rig.frame_placed[setup_.rig_reference_frame] = 1;
+  for (const RigCamera& c : input_.rig->cameras) {
+    rig.cam_from_rig.push_back(make_pose(c.cam_from_rig_rotation, c.cam_from_rig_translation_mm));
+    setup_.cam_from_rig_sigma.push_back(c.cam_from_rig_sigma);
+  }
+  setup_.cam_from_rig_given = rig.cam_from_rig;
+  scene_.rig = std::move(rig);
+}
+
+// Frames not placed yet get the rig's pose from a registered photo of theirs (the one seeing the
+// most points): rig_from_world = cam_from_rig^-1 cam_from_world. Every photo of a placed frame is
+// then posed by the rig (registering those no PnP reached). Returns the photos newly registered.
+std::size_t Pipeline::place_rig_frames() {
+  if (!scene_.rig) return 0;
+  SceneRig& rig = *scene_.rig;
+  std::vector<std::size_t> best(rig.frames.size(), scene_.images.size()), seen(rig.frames.size(), 0);
+  for (std::size_t i = 0; i < scene_.images.size(); ++i) {
+    const SceneImage& im = scene_.images[i];
+    const auto f = static_cast<std::size_t>(im.frame);
+    if (rig.frame_placed[f] || !im.registered) continue;
+    std::size_t count = 0;
+    for (std::size_t o : im.observations) count += scene_.observations[o].inlier && placed(scene_.tracks[scene_.observations[o].track]) ? 1 : 0;
+    if (best[f] == scene_.images.size() || count > seen[f]) best[f] = i, seen[f] = count;
+  }
+  for (std::size_t f = 0; f < rig.frames.size(); ++f) {
+    if (best[f] == scene_.images.size()) continue;
+    const SceneImage& im = scene_.images[best[f]];
+    rig.rig_from_world[f] = compose(geometry::inverse(rig.cam_from_rig[im.camera]), im.cam_from_world);
+    rig.frame_placed[f] = 1;
+  }
+  std::size_t added = 0;
+  for (std::size_t i = 0; i < scene_.images.size(); ++i) {
+    SceneImage& im = scene_.images[i];
+    const auto f = static_cast<std::size_t>(im.frame);
+    if (!rig.frame_placed[f]) continue;
+    im.cam_from_world = compose(rig.cam_from_rig[im.camera], rig.rig_from_world[f]);
+    if (!im.registered) {
+      im.registered = true;
+      registered_by_[i] = "rig";
+      ++added;
+    }
+  }
+  return added;
+}
+
+// The report's rig: frames placed, and each camera's pose in the rig as adjusted against the
+// one given (rotation angle between them, translation difference).
+void Pipeline::report_rig() {
+  if (!scene_.rig) return;
+  const SceneRig& rig = *scene_.rig;
+  RigReport rr;
+  rr.frames = rig.frames.size();
+  for (char p : rig.frame_placed) rr.frames_placed += p ? 1 : 0;
+  rr.reference_frame = rig.frames[setup_.rig_reference_frame];
+  std::string unplaced;
+  std::size_t n_unplaced = 0;
+  for (std::size_t f = 0; f < rig.frames.size(); ++f) {
+    if (rig.frame_placed[f]) continue;
+    if (++n_unplaced <= 5) unplaced += (unplaced.empty() ? "'" : ", '") + rig.frames[f] + "'";
+  }
+  if (n_unplaced > 0) {
+    report_.warnings.push_back(std::to_string(n_unplaced) + " frames of the rig have no pose (" + unplaced +
+                               (n_unplaced > 5 ? "..." : "") + "): none of their photos sees enough of the model");
+  }
+  for (std::size_t k = 0; k < rig.cam_from_rig.size(); ++k) {
+    RigCameraReport c;
+    c.prefix = input_.cameras[k].prefix;
+    c.refined = k > 0 && setup_.cam_from_rig_sigma[k].has_value();
+    const PoseBlock& got = rig.cam_from_rig[k];
+    const PoseBlock& given = setup_.cam_from_rig_given[k];
+    const Eigen::Matrix3d dR = rotation_of(got) * rotation_of(given).transpose();
+    c.rotation_change_deg = Eigen::AngleAxisd(dR).angle() * 180 / std::numbers::pi;
+    c.translation_change_mm = (geometry::translation_of(got) - geometry::translation_of(given)).norm();
+    c.translation_mm = {got[3], got[4], got[5]};
+    c.baseline_mm = centre_of(got).norm();
+    rr.cameras.push_back(c);
+  }
+  report_.rig = rr;
 }
 
 // The user's poses: each names an image of the tracks, exactly or (failing that) by its file
@@ -1060,6 +1161,7 @@ Reconstruction Pipeline::run() {
       input_.control_points, o_.coded_id_limit, o_.weight_by_feature_size);
   registered_by_.assign(scene_.images.size(), "");
   check_input();
+  set_up_rig();
 
   lap("indexing and undistorting the observations");
   std::optional<log::Step> step;
@@ -1071,6 +1173,17 @@ Reconstruction Pipeline::run() {
     log::debug(std::to_string(scene_.registered_count()) + " images registered from known poses");
     triangulate_tracks(scene_, o_.triangulation, o_.threads);
     grow();
+    // With a rig: frames placed by their registered photos, their other photos by the rig, and
+    // on with PnP from what those add, until nothing changes; then every adjustment holds the
+    // frames to the rig.
+    if (scene_.rig) {
+      while (place_rig_frames() > 0) {
+        triangulate_tracks(scene_, o_.triangulation, o_.threads);
+        grow();
+      }
+      setup_.use_rig = true;
+      intermediate_adjustment();
+    }
   } else if (register_from_control()) {
     report_.pose_initialisation = "control_pnp";
     log::debug(std::to_string(scene_.registered_count()) + " images registered from control points");
@@ -1093,6 +1206,7 @@ Reconstruction Pipeline::run() {
   choose_datum();
   step.emplace("final bundle adjustment of " + std::to_string(scene_.registered_count()) + " images");
   final_adjustment();
+  report_rig();
   lap("final adjustment");
 
   Reconstruction r;

@@ -142,6 +142,12 @@ struct ReconstructInput {
   std::vector<Pose> known_poses;
   std::vector<std::size_t> known_pose_lines;
   std::string known_poses_source = "<poses>";
+  // A rig (--rig; `cameras` are its cameras, in its order): the photos of each frame (names
+  // alike but for the camera prefix) share the rig's pose. The known poses place the reference
+  // frame's photos by the rig (the rig's frame there is the world); the other frames are found
+  // and the adjustment holds every frame to the rig (scene.hpp, SceneRig).
+  std::optional<Rig> rig;
+  std::string rig_reference_frame;
 };
 
 struct Reconstruction {

@@ -81,6 +81,27 @@ void write_report_json(std::ostream& out, const Report& r) {
     for (double v : r.refined_camera) j.value(v);
     j.end_array();
   }
+  if (r.rig) {
+    j.key("rig").begin_object();
+    j.field("frames", r.rig->frames);
+    j.field("frames_placed", r.rig->frames_placed);
+    j.field("reference_frame", r.rig->reference_frame);
+    j.key("cameras").begin_array();
+    for (const RigCameraReport& c : r.rig->cameras) {
+      j.begin_object();
+      j.field("prefix", c.prefix);
+      j.field("refined", c.refined);
+      j.field("rotation_change_deg", c.rotation_change_deg);
+      j.field("translation_change_mm", c.translation_change_mm);
+      j.key("translation_mm").begin_array();
+      for (double v : c.translation_mm) j.value(v);
+      j.end_array();
+      j.field("baseline_mm", c.baseline_mm);
+      j.end_object();
+    }
+    j.end_array();
+    j.end_object();
+  }
   if (!r.refined_cameras.empty()) {
     j.key("refined_cameras").begin_array();
     for (const auto& [prefix, values] : r.refined_cameras) {
@@ -196,6 +217,18 @@ void log_report(const Report& r) {
   }
   log::info("reprojection RMS " + fmt(r.final_rms_px) + " px (before the final adjustment " + fmt(r.initial_rms_px) +
             " px); sigma " + (r.observation_sigma_estimated ? "estimated" : "given") + ": " + sigmas);
+  if (r.rig) {
+    std::string cams;
+    for (const RigCameraReport& c : r.rig->cameras) {
+      if (!c.refined) continue;
+      cams += (cams.empty() ? "" : ", ") + c.prefix + " moved " + fmt(c.rotation_change_deg) + " deg, " +
+              fmt(c.translation_change_mm) + " mm (baseline " + fmt(c.baseline_mm) + " mm)";
+    }
+    log::info("rig: " + std::to_string(r.rig->frames_placed) + " of " + std::to_string(r.rig->frames) +
+              " frames placed, frame " + r.rig->reference_frame + " is the world; " +
+              (cams.empty() ? "the cameras' poses in the rig held as given (no sigma in the rig file)"
+                            : "poses in the rig adjusted: " + cams));
+  }
   log::info("bundle adjustment: " + std::to_string(r.adjustments) + " runs, " + fmt(r.adjustment_seconds) + " s (" +
             r.solver + ", " + std::to_string(r.threads) + " threads); total " + fmt(r.total_seconds) + " s");
   std::size_t dropped = 0;

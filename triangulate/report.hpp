@@ -2,6 +2,7 @@
 // JSON keys are documented in docs/triangulate.md.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <map>
 #include <optional>
@@ -76,6 +77,22 @@ struct TwoViewReport {
   std::vector<RemovedPoint> removed;
 };
 
+// A rig's frames and each camera's pose in the rig as adjusted (--rig).
+struct RigCameraReport {
+  std::string prefix;
+  bool refined = false;              // held by its calibration's sigma (else constant)
+  double rotation_change_deg = 0;    // angle between the adjusted and the given rotation
+  double translation_change_mm = 0;  // |t - t_given|
+  std::array<double, 3> translation_mm{};  // adjusted cam_from_rig translation
+  double baseline_mm = 0;            // distance of the camera's centre from the rig's origin
+};
+struct RigReport {
+  std::size_t frames = 0;
+  std::size_t frames_placed = 0;
+  std::string reference_frame;
+  std::vector<RigCameraReport> cameras;
+};
+
 struct Report {
   // Datum: "known_poses", "known_poses+control_points", "control_points", "scale_bars",
   // "marker_side", "scale_bars+marker_side", "arbitrary_scale".
@@ -115,6 +132,7 @@ struct Report {
   std::vector<std::string> warnings;
   // Intrinsics after self-calibration (when refined): fx fy cx cy and distortion, OpenCV order.
   std::vector<double> refined_camera;
+  std::optional<RigReport> rig;  // with --rig
   // The same per camera when there are several (--camera-for, --rig): (prefix, values).
   std::vector<std::pair<std::string, std::vector<double>>> refined_cameras;
 };

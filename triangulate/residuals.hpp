@@ -102,6 +102,105 @@ inline ceres::CostFunction* reprojection_error_with_intrinsics(int block_size, c
   }
 }
 
+// Reprojection error of a photo taken with a rig (scene.hpp, SceneRig): the camera's pose is the
+// rig's pose in the frame composed with the camera's pose in the rig,
+//   x_rig = R(a) X + s,  x_cam = R(b) x_rig + t,
+//   r = (pi(k; x_cam) - u) / sigma_px                                        (2 values)
+// Parameters: rig_from_world[0..5] = (a, s), cam_from_rig[0..5] = (b, t) (angle-axis rad, mm),
+// point[0..2] = X (mm, world), and with `N` > 0 the first N intrinsics (as in
+// ReprojectionErrorWithIntrinsics); with N = 0 the camera's intrinsics are constants. The pose
+// blocks follow COLMAP's rig model (cam_from_rig x rig_from_world); derivatives are automatic.
+template <int N>
+struct RigReprojectionError {
+  RigReprojectionError(const CameraModel* camera, const ModelShape& shape, const Eigen::Vector2d& uv_px, double sigma_px)
+      : camera(camera), shape(shape), u(uv_px.x()), v(uv_px.y()), inv_sigma(1.0 / sigma_px) {}
+
+  template <typename T>
+  bool evaluate(const T* rig_from_world, const T* cam_from_rig, const T* point, const T* intrinsics, T* r) const {
+    T x_rig[3];
+    geometry::transform_point(rig_from_world, point, x_rig);
+    T uv[2];
+    const bool in_front = intrinsics ? project(shape, intrinsics, cam_from_rig, x_rig, uv)
+                                     : project(shape, camera->params.data(), cam_from_rig, x_rig, uv);
+    if (!in_front) return false;
+    r[0] = (uv[0] - u) * inv_sigma;
+    r[1] = (uv[1] - v) * inv_sigma;
+    return true;
+  }
+  template <typename T>
+  bool operator()(const T* rig_from_world, const T* cam_from_rig, const T* point, T* r) const {
+    return evaluate<T>(rig_from_world, cam_from_rig, point, nullptr, r);
+  }
+  template <typename T>
+  bool operator()(const T* rig_from_world, const T* cam_from_rig, const T* point, const T* intrinsics, T* r) const {
+    return evaluate<T>(rig_from_world, cam_from_rig, point, intrinsics, r);
+  }
+
+  const CameraModel* camera;  // N = 0: the intrinsics
+  ModelShape shape;
+  double u, v, inv_sigma;
+};
+
+// RigReprojectionError with the camera's intrinsics constant (block_size 0) or its first
+// block_size intrinsics a parameter block (reprojection_error_with_intrinsics' sizes).
+inline ceres::CostFunction* rig_reprojection_error(const CameraModel& camera, int block_size, const Eigen::Vector2d& uv_px,
+                                                   double sigma_px) {
+  const ModelShape shape = shape_of(camera);
+  auto make = [&]<int N>() -> ceres::CostFunction* {
+    return new ceres::AutoDiffCostFunction<RigReprojectionError<N>, 2, 6, 6, 3, N>(
+        new RigReprojectionError<N>(&camera, shape, uv_px, sigma_px));
+  };
+  switch (block_size) {
+    case 0:
+      return new ceres::AutoDiffCostFunction<RigReprojectionError<0>, 2, 6, 6, 3>(
+          new RigReprojectionError<0>(&camera, shape, uv_px, sigma_px));
+    case kK4: return make.template operator()<kK4>();
+    case kS1: return make.template operator()<kS1>();
+    case kTauX: return make.template operator()<kTauX>();
+    default: return make.template operator()<kIntrinsicCount>();
+  }
+}
+
+// Prior on a camera's pose in the rig, as the rig's calibration measured it (rig.yaml's
+// cam_from_rig and its sigma: rotation about the camera's x, y, z axes, then translation):
+//   r[0..2] = aa(R R0^T) / sigma_rad[0..2],   r[3..5] = (t - t0) / sigma_mm[0..2]      (6 values)
+// R R0^T is the rotation between the two seen from the camera (left of cam_from_rig), so its
+// components are about the camera's axes, as the calibration's covariance gives them.
+// Parameters: cam_from_rig[0..5].
+struct RigPosePrior {
+  RigPosePrior(const PoseBlock& given, const Eigen::Matrix<double, 6, 1>& sigma_deg_mm) {
+    ceres::AngleAxisToQuaternion(given.data(), q0.data());
+    for (int i = 0; i < 3; ++i) {
+      t0[static_cast<std::size_t>(i)] = given[static_cast<std::size_t>(3 + i)];
+      inv_sigma[static_cast<std::size_t>(i)] = 180.0 / (3.14159265358979323846 * sigma_deg_mm[i]);
+      inv_sigma[static_cast<std::size_t>(3 + i)] = 1.0 / sigma_deg_mm[3 + i];
+    }
+  }
+
+  template <typename T>
+  bool operator()(const T* pose, T* r) const {
+    T q[4], q0_inverse[4], dq[4], aa[3];
+    ceres::AngleAxisToQuaternion(pose, q);
+    q0_inverse[0] = T(q0[0]);
+    for (int i = 1; i < 4; ++i) q0_inverse[i] = T(-q0[static_cast<std::size_t>(i)]);
+    ceres::QuaternionProduct(q, q0_inverse, dq);
+    ceres::QuaternionToAngleAxis(dq, aa);
+    for (int i = 0; i < 3; ++i) {
+      r[i] = aa[i] * inv_sigma[static_cast<std::size_t>(i)];
+      r[3 + i] = (pose[3 + i] - t0[static_cast<std::size_t>(i)]) * inv_sigma[static_cast<std::size_t>(3 + i)];
+    }
+    return true;
+  }
+
+  static ceres::CostFunction* create(const PoseBlock& given, const Eigen::Matrix<double, 6, 1>& sigma_deg_mm) {
+    return new ceres::AutoDiffCostFunction<RigPosePrior, 6, 6>(new RigPosePrior(given, sigma_deg_mm));
+  }
+
+  std::array<double, 4> q0{};
+  std::array<double, 3> t0{};
+  std::array<double, 6> inv_sigma{};
+};
+
 // Prior on a control point with known coordinates X0 and standard deviation sigma per axis:
 //   r = (X - X0) / sigma_mm                                                   (3 values)
 // Parameters: point[0..2] = X (mm, world).

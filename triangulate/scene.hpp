@@ -25,6 +25,7 @@ using geometry::Intrinsics;
 using geometry::ModelShape;
 using geometry::PoseBlock;
 using geometry::centre_of;
+using geometry::compose;
 using geometry::distort_to_pixel;
 using geometry::make_pose;
 using geometry::project;
@@ -68,6 +69,20 @@ struct SceneImage {
   std::vector<std::size_t> observations;  // indices into Scene::observations
   bool registered = false;
   PoseBlock cam_from_world{};             // valid when registered
+  // The rig's frame it was taken in (index into SceneRig::frames), or -1: not taken with a rig.
+  std::ptrdiff_t frame = -1;
+};
+
+// Cameras fixed to one another (--rig) photographing several frames: the photos of a frame share
+// the rig's pose, and camera k's pose in the rig is the same in every frame, so
+//   cam_from_world(image) = cam_from_rig[camera] * rig_from_world[frame].
+// The adjustment that uses the rig (BundleSetup::use_rig) takes these as its parameters and
+// writes the composed poses back into the images.
+struct SceneRig {
+  std::vector<std::string> frames;          // frame keys (image names without the camera prefix)
+  std::vector<PoseBlock> rig_from_world;    // per frame
+  std::vector<char> frame_placed;           // per frame: rig_from_world is set
+  std::vector<PoseBlock> cam_from_rig;      // per camera
 };
 
 enum class TrackState {
@@ -108,6 +123,7 @@ struct Scene {
   std::vector<SceneTrack> tracks;         // in order of first appearance
   std::vector<ObservationRef> observations;
   std::unordered_map<TrackId, std::size_t> track_by_id;  // id -> index into tracks
+  std::optional<SceneRig> rig;            // photos taken with a rig (see SceneRig)
 
   // Index of a track by id, or nullopt.
   std::optional<std::size_t> find_track(TrackId id) const;

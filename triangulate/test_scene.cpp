@@ -177,6 +177,71 @@ Eigen::Vector3d add_two_view_track(SceneTruth& truth, TrackId id, std::size_t a,
   return there;
 }
 
+RigSceneTruth make_rig_scene(int frames, double noise_px, unsigned seed) {
+  SceneOptions o;
+  o.views = 2 * frames;
+  o.noise_px = 0;
+  const SceneTruth base = make_scene(o);
+  RigSceneTruth s;
+  RigCamera left{"left_", base.camera, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), std::nullopt};
+  RigCamera right = left;
+  right.prefix = "right_";
+  right.camera.camera_matrix(0, 0) = right.camera.camera_matrix(1, 1) = 2600;
+  right.camera.distortion = {-0.05, 0.03, -0.0002, 0.0003, 0.0};
+  right.cam_from_rig_rotation = Eigen::AngleAxisd(6 * kDeg, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  right.cam_from_rig_translation_mm = -right.cam_from_rig_rotation * Eigen::Vector3d(80, 0, 0);
+  s.rig.cameras = {left, right};
+  // world_new = T0 world_old, T0 the rig's pose at frame 00 (camera 0's).
+  const Eigen::Matrix3d R0 = base.poses[0].rotation();
+  const Eigen::Vector3d t0 = base.poses[0].cam_from_world_translation_mm;
+  for (const auto* in : {&base.plate_points, &base.part_points}) {
+    auto& out = in == &base.plate_points ? s.plate_points : s.part_points;
+    for (ControlPoint p : *in) {
+      p.xyz_mm = R0 * p.xyz_mm + t0;
+      out.push_back(p);
+    }
+  }
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> noise(0.0, noise_px);
+  for (int f = 0; f < frames; ++f) {
+    const Pose& frame = base.poses[static_cast<std::size_t>(2 * f)];
+    // rig_from_world_new = rig_from_world_old T0^-1.
+    const Eigen::Matrix3d Rf = frame.rotation() * R0.transpose();
+    const Eigen::Vector3d tf = frame.cam_from_world_translation_mm - Rf * t0;
+    for (const RigCamera& cam : s.rig.cameras) {
+      char name[32];
+      std::snprintf(name, sizeof name, "%s%02d.png", cam.prefix.c_str(), f);
+      Pose pose;
+      pose.image = name;
+      const Eigen::Matrix3d R = cam.cam_from_rig_rotation * Rf;
+      pose.cam_from_world_rotation = Eigen::Quaterniond(R).normalized();
+      pose.cam_from_world_translation_mm = cam.cam_from_rig_rotation * tf + cam.cam_from_rig_translation_mm;
+      s.poses.push_back(pose);
+      const Eigen::AngleAxisd aa(pose.rotation());
+      const Eigen::Vector3d rv = aa.angle() * aa.axis();
+      const Eigen::Vector3d& t = pose.cam_from_world_translation_mm;
+      const cv::Mat rvec = (cv::Mat_<double>(3, 1) << rv.x(), rv.y(), rv.z());
+      const cv::Mat tvec = (cv::Mat_<double>(3, 1) << t.x(), t.y(), t.z());
+      cv::Mat K, dist(1, static_cast<int>(cam.camera.distortion.size()), CV_64F);
+      cv::eigen2cv(cam.camera.camera_matrix, K);
+      for (std::size_t i = 0; i < cam.camera.distortion.size(); ++i) dist.at<double>(static_cast<int>(i)) = cam.camera.distortion[i];
+      for (const auto* points : {&s.plate_points, &s.part_points}) {
+        for (const ControlPoint& p : *points) {
+          std::vector<cv::Point2d> uv;
+          cv::projectPoints(std::vector<cv::Point3d>{{p.xyz_mm.x(), p.xyz_mm.y(), p.xyz_mm.z()}}, rvec, tvec, K, dist, uv);
+          const double depth = (pose.rotation() * p.xyz_mm + t).z();
+          if (depth <= 0 || uv[0].x < 0 || uv[0].y < 0 || uv[0].x > cam.camera.image_width_px - 1 ||
+              uv[0].y > cam.camera.image_height_px - 1) {
+            continue;
+          }
+          s.tracks.push_back({p.point_id, pose.image, uv[0].x + noise(rng), uv[0].y + noise(rng)});
+        }
+      }
+    }
+  }
+  return s;
+}
+
 Accuracy evaluate(const Reconstruction& r, const SceneTruth& truth, bool similarity) {
   std::map<PointId, Eigen::Vector3d> true_points;
   for (const auto& p : truth.plate_points) true_points[p.point_id] = p.xyz_mm;

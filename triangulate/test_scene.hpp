@@ -53,6 +53,19 @@ struct SceneTruth {
 
 SceneTruth make_scene(const SceneOptions& options);
 
+// A stereo rig photographing make_scene's plate and part from `frames` places (make_scene's views
+// 0, 2, 4...): camera 0 ("left_", make_scene's camera) is the rig's frame; camera 1 ("right_",
+// focal 2600 px, its own distortion) sits 80 mm to its right, turned 6 degrees towards it. The
+// world is the rig's frame at frame 00 (left_00.png, right_00.png), as triangulate --rig makes it.
+struct RigSceneTruth {
+  Rig rig;                                  // the true rig
+  std::vector<Pose> poses;                  // every photo's cam_from_world
+  std::vector<ControlPoint> plate_points;   // in the world above
+  std::vector<ControlPoint> part_points;
+  std::vector<TrackObservation> tracks;     // with N(0, noise_px) per coordinate
+};
+RigSceneTruth make_rig_scene(int frames, double noise_px, unsigned seed);
+
 // Feature sizes that tell good observations from bad: every third observation becomes a 12 px
 // feature moved by N(0, 0.6 px) noise per axis (seeded), the rest 1 px features left exact.
 void give_sizes_spoil_large(std::vector<TrackObservation>& tracks);
