@@ -37,7 +37,22 @@ void detect_chessboard(const cv::Mat& grey, const BoardSpec& spec, const BoardDe
                                         cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE);
   if (!out.found) return;
   const int w = options.chessboard_half_window_px;
+  const std::vector<cv::Point2f> start = corners;
   cv::cornerSubPix(grey, corners, cv::Size(w, w), cv::Size(-1, -1), subpix_criteria(options));
+  if (options.chessboard_window_check_px > 0) {
+    // cornerSubPix solves sum_q (grad I(q) . (q - p))^2 = min over the window: every gradient in
+    // it must point at p. An edge that is not the corner's (the board's outer edge) inside the
+    // window pulls p towards it, by less than the window, so a move check cannot see it; a window
+    // half as large that leaves it out lands elsewhere.
+    std::vector<cv::Point2f> small = start;
+    const int ws = std::max(2, w / 2);
+    cv::cornerSubPix(grey, small, cv::Size(ws, ws), cv::Size(-1, -1), subpix_criteria(options));
+    for (std::size_t i = 0; i < corners.size(); ++i) {
+      if (cv::norm(corners[i] - small[i]) <= options.chessboard_window_check_px) continue;
+      corners[i] = small[i];
+      ++out.corrected;
+    }
+  }
   for (std::size_t i = 0; i < corners.size(); ++i) {
     out.observations.push_back({out.image, static_cast<PointId>(i), corners[i].x, corners[i].y});
   }
@@ -156,6 +171,9 @@ std::string describe(const ImageDetection& d) {
                      " corners";
   if (d.markers > 0) line += ", " + std::to_string(d.markers) + " markers";
   if (d.rejected > 0) line += ", " + std::to_string(d.rejected) + " corners dropped by the refinement";
+  if (d.corrected > 0) {
+    line += ", " + std::to_string(d.corrected) + " corners from the half window (the full one took in another edge)";
+  }
   return line;
 }
 

@@ -39,6 +39,11 @@ struct BoardDetectOptions {
   // Chessboard corner refinement (the settings of OpenCV's calibration sample and of the
   // reference values in ../shared/data/README.md): cornerSubPix with an 11x11 half-window.
   int chessboard_half_window_px = 11;
+  // > 0: each chessboard corner is refined again with half that half-window, from the same
+  // start; where the two disagree by more than this (px), the large window has taken in another
+  // edge (the board's outer edge beside a foreshortened outer row) and the small window's corner
+  // is kept (counted in ImageDetection::corrected). 0: OpenCV's corners as they are.
+  double chessboard_window_check_px = 0.5;
   int subpix_max_iterations = 30;
   double subpix_epsilon_px = 1e-4;
   // ChArUco: OpenCV 4.6's interpolateCornersCharuco returns corners shifted by +0.5 px in x and y
@@ -64,6 +69,7 @@ struct ImageDetection {
   bool found = false;                     // board found (chessboard: all corners; ChArUco: >= 1)
   int markers = 0;                        // ChArUco: markers detected
   int rejected = 0;                       // ChArUco: corners dropped by the refinement
+  int corrected = 0;                      // chessboard: corners taken from the half window
   std::vector<Observation> observations;  // sorted by point_id
 };
 

@@ -171,11 +171,16 @@ TEST(ChessboardTruth, CornersWithinAFewHundredthsOfAPixel) {
   std::mt19937 rng(5);
   double sse = 0;
   int n = 0;
+  BoardDetectOptions opencv;
+  opencv.chessboard_window_check_px = 0;
   for (int k = 0; k < 4; ++k) {
     const Rendered r = render(flat, truth_flat, rng, 0.7, 0.6);
     const ImageDetection d = detect_board(r.image, "render", spec, {});
     ASSERT_TRUE(d.found);
     ASSERT_EQ(d.observations.size(), 54u);
+    // No other edge near any corner: the window check changes nothing.
+    EXPECT_EQ(d.corrected, 0);
+    EXPECT_EQ(d.observations, detect_board(r.image, "render", spec, opencv).observations);
     // findChessboardCorners may number the corners from either end of a 9x6 board.
     double forward = 0;
     double backward = 0;
@@ -188,6 +193,35 @@ TEST(ChessboardTruth, CornersWithinAFewHundredthsOfAPixel) {
     n += 54;
   }
   EXPECT_LT(std::sqrt(sse / n), 0.05);
+}
+
+// right05.jpg of OpenCV's stereo set: its corner 45, in the board's foreshortened outer row, is
+// pulled 4 px off by the board's outer edge inside cornerSubPix's 11 px half-window (OpenCV's
+// findChessboardCorners + cornerSubPix put it at (101.72, 111.57) px). Half-windows of 3-9 px all
+// put it at (101.6-101.7, 115.4-115.5): the window check keeps that one.
+TEST(ChessboardWindowCheck, FreesACornerFromTheBoardsOuterEdge) {
+  const std::string file = kData + "/opencv-chessboard/right05.jpg";
+  if (!std::filesystem::exists(file)) GTEST_SKIP() << "shared data not found: " << file;
+  BoardSpec spec;
+  spec.cols = 9;
+  spec.rows = 6;
+  BoardDetectOptions opencv;
+  opencv.chessboard_window_check_px = 0;
+  const auto ours = detect_boards({file}, spec, {});
+  const auto theirs = detect_boards({file}, spec, opencv);
+  ASSERT_EQ(ours[0].observations.size(), 54u);
+  ASSERT_EQ(theirs[0].observations.size(), 54u);
+  const Observation& a = ours[0].observations[45];
+  const Observation& b = theirs[0].observations[45];
+  EXPECT_NEAR(b.v_px, 111.57, 0.05);  // OpenCV's
+  EXPECT_NEAR(a.u_px, 101.65, 0.15);
+  EXPECT_NEAR(a.v_px, 115.45, 0.15);
+  EXPECT_GT(ours[0].corrected, 0);
+  EXPECT_EQ(theirs[0].corrected, 0);
+  // Corners the check leaves alone are OpenCV's exactly.
+  int same = 0;
+  for (std::size_t i = 0; i < 54; ++i) same += ours[0].observations[i] == theirs[0].observations[i] ? 1 : 0;
+  EXPECT_EQ(same, 54 - ours[0].corrected);
 }
 
 struct PhotoCase {

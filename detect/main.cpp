@@ -57,6 +57,10 @@ int main(int argc, char** argv) {
         app.add_option("--charuco-max-window", options.charuco_max_half_window_px,
                        "ChArUco: largest cornerSubPix half-window, px")
             ->group("Boards")->capture_default_str()->check(CLI::Range(2, 50));
+        app.add_option("--chessboard-window-check", options.chessboard_window_check_px,
+                       "Chessboard: refine each corner with half the window too and keep that one where they differ "
+                       "by more than this, px (the full window took in another edge); 0 = OpenCV's corners")
+            ->group("Boards")->capture_default_str()->check(tool::non_negative_up_to(100));
         app.add_option("--max-image-mpx", max_image_mpx,
                        "Pixel limit: a photo whose header claims more megapixels is refused before it is decoded")
             ->capture_default_str()->check(tool::positive_up_to(10000));

@@ -31,6 +31,7 @@ using photomill::test::ToolResult;
 
 const std::string kDemo = std::string(PHOTOMILL_SOURCE_DIR) + "/data/demo/";
 const std::string kBoard = kDemo + "board_00.jpg";
+const std::string kRight05 = std::string(PHOTOMILL_SHARED_DIR) + "/data/opencv-chessboard/right05.jpg";
 
 // The crop, written once (lossless) into a temporary folder.
 struct Crop {
@@ -240,7 +241,19 @@ INSTANTIATE_TEST_SUITE_P(
                      EXPECT_EQ(r.observations.size(), wide.observations.size());
                      EXPECT_GT(max_shift(r.observations, wide.observations), 1e-4);
                    }},
-        OptionCase{"charuco_max_window_1", board({"--charuco-max-window", "1"}), 2, "--charuco-max-window", nullptr}),
+        OptionCase{"charuco_max_window_1", board({"--charuco-max-window", "1"}), 2, "--charuco-max-window", nullptr},
+        // Chessboard: OpenCV's corners without the window check; right05's corner 45 is then the
+        // one cornerSubPix pulls 4 px towards the board's edge (boards_test.cpp).
+        OptionCase{"chessboard_window_check", {"--chessboard", "9x6", "--chessboard-window-check", "0", kRight05}, 0, "",
+                   [](const Outcome& r) {
+                     const Outcome checked = detect({"--chessboard", "9x6", kRight05});
+                     ASSERT_EQ(checked.r.exit_code, 0) << checked.r.err;
+                     ASSERT_EQ(r.observations.size(), 54u);
+                     ASSERT_EQ(checked.observations.size(), 54u);
+                     EXPECT_GT(checked.observations[45].v_px - r.observations[45].v_px, 3.0);
+                   }},
+        OptionCase{"chessboard_window_check_negative", {"--chessboard", "9x6", "--chessboard-window-check", "-1", kRight05}, 2,
+                   "--chessboard-window-check", nullptr}),
     [](const auto& info) { return std::string(info.param.name); });
 
 }  // namespace

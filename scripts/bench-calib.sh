@@ -81,8 +81,8 @@ optimisers() {  # optimisers NAME OBS ARGS...
 
 echo "## Real photos (every view kept: --reject-factor 0)"
 echo
-"$bin/detect" -q --chessboard 9x6 "$data"/opencv-chessboard/left*.jpg > "$work/left.csv"
-"$bin/detect" -q --chessboard 9x6 "$data"/opencv-chessboard/right*.jpg > "$work/right.csv"
+"$bin/detect" -q --chessboard 9x6 --chessboard-window-check 0 "$data"/opencv-chessboard/left*.jpg > "$work/left.csv"  # OpenCV's corners, as the reference
+"$bin/detect" -q --chessboard 9x6 --chessboard-window-check 0 "$data"/opencv-chessboard/right*.jpg > "$work/right.csv"
 "$bin/detect" -q --charuco 5x7 --square-mm 40 --marker-mm 20 "$data"/opencv-aruco/img_0[0-3].jpg > "$work/charuco.csv"
 header
 optimisers "left" "$work/left.csv" --chessboard 9x6 --reject-factor 0
