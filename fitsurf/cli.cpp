@@ -272,7 +272,7 @@ std::vector<LengthOption> length_options_acting(const Cli& c, const Options& o, 
   add("--noise-mm", o.fit.noise_mm, d.options.fit.noise_mm, o.fit.noise_mm > 0);
   // The concave outline's cell, when given (0: from the point spacing) and the outline is concave.
   std::size_t outlined = 0;
-  for (std::size_t k = 0; k < r.fit.uv.size(); ++k) outlined += r.fit.weight.empty() || r.fit.weight[k] > 0;
+  for (std::size_t k = 0; k < r.fit.uv.size(); ++k) outlined += k >= r.fit.weight.size() || r.fit.weight[k] > 0;
   const bool concave = o.outline.method == OutlineMethod::Concave ||
                        (o.outline.method == OutlineMethod::Auto && outlined >= o.outline.concave_min_points);
   add("--outline-cell-mm", o.outline.cell_mm, d.options.outline.cell_mm, o.outline.cell_mm > 0 && concave);
