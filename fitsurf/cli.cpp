@@ -1,7 +1,9 @@
 // fitsurf's options and outputs (cli.hpp).
 #include "fitsurf/cli.hpp"
 
+#include <algorithm>
 #include <charconv>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -10,6 +12,7 @@
 #include <CLI/CLI.hpp>
 
 #include "fitsurf/mesh.hpp"
+#include "fitsurf/numbers.hpp"
 #include "fitsurf/preview.hpp"
 #include "fitsurf/report.hpp"
 #include "formats/cad.hpp"
@@ -235,6 +238,50 @@ Options to_options(const Cli& c) {
   return o;
 }
 
+std::vector<LengthOption> length_options_acting(const Cli& c, const Options& o, const Result& r) {
+  std::vector<LengthOption> out;
+  if (r.units == kSurfaceUnitMm) return out;
+  const Cli d;  // the defaults
+  const auto add = [&](const char* option, double value, double default_value, bool acts) {
+    if (acts) out.push_back({option, {value}, value == default_value, value, ""});
+  };
+  const auto sides = [](const std::array<double, 6>& b) { return std::max({b[3] - b[0], b[4] - b[1], b[5] - b[2]}); };
+  add("--mesh-step-mm", c.mesh_step_mm, d.mesh_step_mm, !c.mesh.empty());
+  add("--uncertainty-cell-mm", c.uncertainty_options.cell_mm, d.uncertainty_options.cell_mm, !c.uncertainty.empty());
+  if (const auto& b = o.select.keep_box_mm) {
+    out.push_back({"--keep-box", std::vector<double>(b->begin(), b->end()), false, sides(*b), "a box " + sig(sides(*b), 3) + " across"});
+  }
+  // A plane through the origin is the same plane in any unit.
+  if (o.select.keep_above && o.select.keep_above->offset_mm != 0) {
+    const double dist = std::abs(o.select.keep_above->offset_mm);
+    out.push_back({"--keep-above", c.keep_above, false, dist, "a plane " + sig(dist, 3) + " from the origin"});
+  }
+  add("--plane-threshold-mm", o.select.plane_threshold_mm, d.options.select.plane_threshold_mm, o.select.drop_plane);
+  // The walls' neighbourhood is at least 2.5 point spacings: where walls were found, whether the
+  // option or the spacing set it is known.
+  const auto& walls = r.selection.walls;
+  add("--wall-radius-mm", o.select.walls.radius_mm, d.options.select.walls.radius_mm,
+      o.select.walls.enabled && (!walls || walls->radius_mm == o.select.walls.radius_mm));
+  // lambda is a length to the power 2m: its 2m-th root is the length below which detail goes.
+  if (o.fit.noise_mm == 0 && o.fit.smoothing_mm4 > 0) {
+    const int root = 2 * o.fit.smoothing_order;
+    const double length = std::pow(o.fit.smoothing_mm4, 1.0 / root);
+    out.push_back({"--smoothing", {o.fit.smoothing_mm4}, o.fit.smoothing_mm4 == d.options.fit.smoothing_mm4, length,
+                   "its " + std::to_string(root) + "th root " + sig(length, 3)});
+  }
+  add("--noise-mm", o.fit.noise_mm, d.options.fit.noise_mm, o.fit.noise_mm > 0);
+  // The concave outline's cell, when given (0: from the point spacing) and the outline is concave.
+  std::size_t outlined = 0;
+  for (std::size_t k = 0; k < r.fit.uv.size(); ++k) outlined += k >= r.fit.weight.size() || r.fit.weight[k] > 0;
+  const bool concave = o.outline.method == OutlineMethod::Concave ||
+                       (o.outline.method == OutlineMethod::Auto && outlined >= o.outline.concave_min_points);
+  add("--outline-cell-mm", o.outline.cell_mm, d.options.outline.cell_mm, o.outline.cell_mm > 0 && concave);
+  add("--robust-floor-mm", o.fit.robust_min_scale_mm, d.options.fit.robust_min_scale_mm, o.fit.robust != RobustLoss::None);
+  add("--sigma-floor-mm", o.sigma_floor_mm, d.options.sigma_floor_mm, o.weight_by_sigma);
+  if (o.tolerance) out.push_back({"--tolerance", {o.tolerance->tolerance_mm}, false, o.tolerance->tolerance_mm, ""});
+  return out;
+}
+
 void write_outputs(const Cli& c, const Options& options, const PointCloud& cloud, const Result& result) {
   const BSplineSurface& surface = result.fit.surface;
   std::vector<std::unique_ptr<tool::OutputFile>> files;
@@ -243,8 +290,17 @@ void write_outputs(const Cli& c, const Options& options, const PointCloud& cloud
     return *files.back();
   };
   // The headers name the file the user asked for, not the temporary it is written to.
-  const auto header = [](const std::string& name) {
-    return CadHeader{name == "-" ? "" : std::filesystem::path(name).filename().string()};
+  const auto header = [&](const std::string& name) {
+    CadHeader h{name == "-" ? "" : std::filesystem::path(name).filename().string()};
+    if (!surface.in_mm()) {
+      // STEP and IGES have no arbitrary unit: the file says millimetres. The warning says it is
+      // not, and so does STEP's FILE_DESCRIPTION.
+      h.description = "B-spline surface fitted by photomill, units arbitrary: NOT mm (the point cloud was oriented "
+                      "without a datum), although the file says millimetres";
+      log::warn(name + ": the CAD file says millimetres, but the surface's scale is arbitrary (fitted from a cloud "
+                "oriented without a datum): scale it before any use in mm");
+    }
+    return h;
   };
   if (!c.step.empty()) write_step(surface, file(c.step).temp_path(), header(c.step));
   if (!c.iges.empty()) write_iges(surface, file(c.iges).temp_path(), header(c.iges));
@@ -253,7 +309,9 @@ void write_outputs(const Cli& c, const Options& options, const PointCloud& cloud
     m.step_mm = c.mesh_step_mm;
     write_mesh(file(c.mesh).stream(), surface, mesh_format_for(c.mesh), m);
   }
-  if (!c.report.empty()) write_report(file(c.report).stream(), result, options, tool::source_name(c.input));
+  if (!c.report.empty()) {
+    write_report(file(c.report).stream(), result, options, tool::source_name(c.input), length_options_acting(c, options, result));
+  }
   if (!c.residuals.empty()) {
     write_ply(file(c.residuals).stream(), residual_cloud(cloud, result), PlyEncoding::BinaryLittleEndian,
               "fitsurf residuals: residual_mm = signed distance to the surface, weight = robust weight");

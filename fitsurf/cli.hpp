@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "fitsurf/fitsurf.hpp"
+#include "fitsurf/report.hpp"
 #include "fitsurf/uncertainty.hpp"
 #include "formats/cli_fwd.hpp"
 #include "formats/point_cloud.hpp"
@@ -44,6 +45,12 @@ Options to_options(const Cli& cli);
 
 // "30x30" or "30" (square) -> poles along u and v.
 std::pair<int, int> parse_net(const std::string& text);
+
+// On a cloud not in mm (Result::units): the length options that acted in this run, given or by
+// default (each only where it acts: --plane-threshold-mm with --drop-plane, --mesh-step-mm with
+// --mesh, ...), in the order of --help. Empty for a cloud in mm. None is rescaled: fitsurf has no
+// length of its own to put in their place that would be right for every part.
+std::vector<LengthOption> length_options_acting(const Cli& cli, const Options& options, const Result& result);
 
 // Writes the surface (stdout or -o), STEP, IGES, mesh, report and residual cloud.
 void write_outputs(const Cli& cli, const Options& options, const PointCloud& cloud, const Result& result);

@@ -114,22 +114,66 @@ TEST(FitsurfCli, QuietMeansNothingOnStderr) {
 
 // A cloud oriented without any datum (its PLY says units arbitrary): fitted, with a warning that
 // nothing is in mm, and the report says the unit; a cloud in mm gives no such warning.
+// A cloud without a datum (units arbitrary): fitsurf warns that its scale is not mm, names the
+// length options that acted in the cloud's unit (only those: no --plane-threshold-mm without
+// --drop-plane), lists them in the report, and writes `units arbitrary` into the surface (and
+// into nothing for a cloud in mm).
 TEST(FitsurfCli, WarnsThatAnArbitraryScaleIsNotMm) {
   TempDir dir;
   const auto p = [&](const char* name) { return (dir.path() / name).string(); };
+  const auto has = [](const std::string& text, const std::string& what) { return text.find(what) != std::string::npos; };
   PointCloud in;
   in.points_mm = fitsurf::test::sample(fitsurf::test::shape("dome"), 2000, 0.01, 41);
   for (const char* units : {"arbitrary", "mm"}) {
     in.units = units;
+    const bool arbitrary = in.units == "arbitrary";
     {
       std::ofstream f(p("in.ply"), std::ios::binary);
       write_ply(f, in, PlyEncoding::BinaryLittleEndian);
     }
-    const ToolResult r = run_tool("fitsurf", {p("in.ply"), "-o", p("s.surf"), "--report", p("r.json")});
+    const ToolResult r = run_tool("fitsurf", {p("in.ply"), "-o", p("s.surf"), "--report", p("r.json"), "--mesh", p("m.stl"),
+                                              "--step", p("s.step")});
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    const bool warned = r.err.find("warning: the point cloud's scale is arbitrary, not mm") != std::string::npos;
-    EXPECT_EQ(warned, in.units == "arbitrary") << r.err;
-    EXPECT_NE(photomill::test::read_file(dir.path() / "r.json").find("\"units\":\"" + in.units + "\""), std::string::npos);
+    EXPECT_EQ(has(r.err, "warning: the point cloud's scale is arbitrary, not mm"), arbitrary) << r.err;
+    EXPECT_EQ(has(r.err, "warning: these length options act in the cloud's unit, not in mm (the cloud's extent: "), arbitrary)
+        << r.err;
+    for (const char* acting : {"--mesh-step-mm 1 (default; ", "--wall-radius-mm 2 (default; ",
+                               "--smoothing 0.01 (default; its 4th root 0.316, ", "--robust-floor-mm 0.02 (default; "}) {
+      EXPECT_EQ(has(r.err, acting), arbitrary) << acting << "\n" << r.err;
+    }
+    for (const char* idle : {"--plane-threshold-mm", "--sigma-floor-mm", "--uncertainty-cell-mm", "--keep-box", "--tolerance"}) {
+      EXPECT_FALSE(has(r.err, idle)) << idle << "\n" << r.err;
+    }
+    EXPECT_EQ(has(r.err, "give lengths in the cloud's unit, or give triangulate a datum"), arbitrary) << r.err;
+    EXPECT_EQ(has(r.err, "s.step: the CAD file says millimetres, but the surface's scale is arbitrary"), arbitrary) << r.err;
+    const std::string report = photomill::test::read_file(dir.path() / "r.json");
+    EXPECT_TRUE(has(report, "\"units\":\"" + in.units + "\""));
+    EXPECT_EQ(has(report, "\"length_options_in_cloud_units\":[{\"option\":\"--mesh-step-mm\",\"value\":1,\"default\":true,"),
+              arbitrary) << report;
+    EXPECT_EQ(has(report, "\"length_options_in_cloud_units\":[]"), !arbitrary) << report;
+    std::ifstream sf(p("s.surf"));
+    const BSplineSurface s = read_surface(sf, "s.surf");
+    EXPECT_EQ(s.units, in.units);
+    EXPECT_EQ(has(photomill::test::read_file(dir.path() / "s.surf"), "\nunits arbitrary\n"), arbitrary);
+  }
+  // Other options, other acting lengths: a plane off the origin, a given smoothing; no robust
+  // floor without a robust mode, no wall radius with --walls off.
+  const ToolResult r = run_tool("fitsurf", {p("in.ply"), "-o", p("s.surf"), "--robust", "none", "--walls", "off",
+                                            "--keep-above", "0,0,1,100", "--smoothing", "0.5"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_FALSE(has(r.err, "length options")) << "the cloud is in mm again\n" << r.err;
+  in.units = "arbitrary";
+  {
+    std::ofstream f(p("in.ply"), std::ios::binary);
+    write_ply(f, in, PlyEncoding::BinaryLittleEndian);
+  }
+  const ToolResult a = run_tool("fitsurf", {p("in.ply"), "-o", p("s.surf"), "--robust", "none", "--walls", "off",
+                                            "--keep-above", "0,0,1,100", "--smoothing", "0.5"});
+  ASSERT_EQ(a.exit_code, 0) << a.err;
+  EXPECT_TRUE(has(a.err, "--keep-above 0,0,1,100 (a plane 100 from the origin, ")) << a.err;
+  EXPECT_TRUE(has(a.err, "--smoothing 0.5 (its 4th root 0.841, ")) << a.err;
+  for (const char* idle : {"--robust-floor-mm", "--wall-radius-mm", "--mesh-step-mm"}) {
+    EXPECT_FALSE(has(a.err, idle)) << idle << "\n" << a.err;
   }
 }
 

@@ -252,6 +252,11 @@ Result fit_point_cloud(const PointCloud& cloud, const Options& options, const st
   r.input_points = cloud.points_mm.size();
   r.units = cloud.units;
   if (cloud.points_mm.empty()) throw GeometryError("no points to fit: the input holds none");
+  {
+    Eigen::Vector3d lo = cloud.points_mm.front(), hi = lo;
+    for (const auto& p : cloud.points_mm) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    r.extent = (hi - lo).maxCoeff();
+  }
   std::optional<log::Step> step(std::in_place, "selecting the part's points among " + std::to_string(cloud.points_mm.size()));
   r.selection = select_part(cloud.points_mm, options.select);
   std::vector<Eigen::Vector3d> points;
@@ -316,6 +321,9 @@ Result fit_point_cloud(const PointCloud& cloud, const Options& options, const st
               " mm. A larger --smoothing lets the correction go further");
   }
   step.reset();
+  // A surface holds mm or the arbitrary unit of a reconstruction without a datum: a cloud in any
+  // unit but mm (only triangulate --arbitrary-scale writes one) gives a surface that is not in mm.
+  r.fit.surface.units = r.fit.local_surface.units = cloud.units == kSurfaceUnitMm ? kSurfaceUnitMm : kSurfaceUnitArbitrary;
   r.stats = residual_stats(r.fit.residual_mm, r.fit);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
@@ -324,6 +332,7 @@ Result fit_point_cloud(const PointCloud& cloud, const Options& options, const st
 PointCloud residual_cloud(const PointCloud& input, const Result& result) {
   PointCloud out;
   out.xyz_type = input.xyz_type;
+  out.units = input.units;
   const auto& kept = result.selection.kept;
   out.points_mm.reserve(kept.size());
   for (std::size_t k : kept) out.points_mm.push_back(input.points_mm[k]);

@@ -81,10 +81,15 @@ ResidualStats residual_stats(const std::vector<double>& d, const FitResult& fit)
 struct Result {
   std::size_t input_points = 0;
   std::string units = "mm";  // the cloud's (PointCloud::units): "arbitrary" warns that nothing is in mm
+  // The largest side of the input cloud's axis-aligned bounding box, in its unit: what a length
+  // option is compared with when the cloud is not in mm (length_options_warning).
+  double extent = 0;
   Selection selection;
   std::optional<ToleranceSearch> tolerance;
   std::optional<PrefitSummary> prefit;  // set when the kernel prefit was used
-  FitResult fit;            // fit.surface carries the outline as boundary_uv
+  // fit.surface carries the outline as boundary_uv, and the cloud's unit: "mm", else "arbitrary"
+  // (BSplineSurface::units), so that no tool path takes it as mm.
+  FitResult fit;
   ResidualStats stats;
   double seconds = 0;       // wall time of fit_point_cloud
 };

@@ -23,7 +23,11 @@ int main(int argc, char** argv) {
         if (cloud.points_mm.empty()) throw InputError(tool::source_name(cli.input), 0, "no points: nothing to fit");
         const fitsurf::Result result = fitsurf::fit_point_cloud(cloud, options, tool::source_name(cli.input));
         for (const auto& line : fitsurf::summary(result, options)) log::info(line);
-        if (result.units != "mm") log::warn(fitsurf::units_warning(result));
+        if (result.units != "mm") {
+          log::warn(fitsurf::units_warning(result));
+          const auto lengths = fitsurf::length_options_acting(cli, options, result);
+          if (!lengths.empty()) log::warn(fitsurf::length_options_warning(lengths, result));
+        }
         fitsurf::write_outputs(cli, options, cloud, result);
       });
 }

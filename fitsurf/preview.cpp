@@ -67,14 +67,16 @@ std::vector<std::uint8_t> render_preview_png(const Result& result, const std::ve
   axes.plot = cv::Rect(kLeft, kTop, width - kLeft - kBarArea, plot_h);
   axes.x0 = fit.box.t1_min, axes.x1 = fit.box.t1_min + lu;
   axes.y0 = fit.box.t2_min, axes.y1 = fit.box.t2_min + plot_h / scale;
-  axes.x_label = "u mm", axes.y_label = "v mm";
+  // A cloud without a datum is in its own unit, not mm: the labels say "units" (Result::units).
+  const std::string unit = result.units == "mm" ? "mm" : "units";
+  axes.x_label = "u " + unit, axes.y_label = "v " + unit;
   // Local (x, y) mm -> pixel, 16x sub-pixel (4 fractional bits), y up.
   const auto px = [&](double x, double y) {
     const cv::Point2d q = axes.px(x, y);
     return cv::Point(static_cast<int>(std::lround(q.x * 16)), static_cast<int>(std::lround(q.y * 16)));
   };
   cv::Mat img(height, width, CV_8UC3, cv::Scalar(255, 255, 255));
-  plot::text(img, "fitted surface seen along the fit plane's normal (u, v: mm in that plane)", {kLeft, 22}, 0.55);
+  plot::text(img, "fitted surface seen along the fit plane's normal (u, v: " + unit + " in that plane)", {kLeft, 22}, 0.55);
 
   // The surface: grid cells inside the outline, grey by Lambert shading of the cell's normal,
   // light from the upper left and above. Seen along z: cells drawn lowest first.
@@ -159,14 +161,14 @@ std::vector<std::uint8_t> render_preview_png(const Result& result, const std::ve
   plot::draw_axes(img, axes);
   plot::ColourBar bar;
   bar.bar = cv::Rect(width - kBarArea + 24, kTop + 10, 18, std::max(40, plot_bottom - kTop - 20));
-  bar.lo = -range, bar.hi = range, bar.title = "residual", bar.unit = "mm";
+  bar.lo = -range, bar.hi = range, bar.title = "residual", bar.unit = unit;
   bar.colour = [range](double v) { return residual_colour(v / range); };
   plot::draw_colour_bar(img, bar);
 
   const ResidualStats& st = result.stats;
   std::string text = std::to_string(d.size()) + " points, " + std::to_string(s.num_poles_u) + "x" +
-                     std::to_string(s.num_poles_v) + " net; residual RMS " + mm(st.rms_mm) + " mm, max " +
-                     mm(st.max_abs_mm) + " mm; dots: signed residual (red above, blue below)";
+                     std::to_string(s.num_poles_v) + " net; residual RMS " + mm(st.rms_mm) + " " + unit + ", max " +
+                     mm(st.max_abs_mm) + " " + unit + "; dots: signed residual (red above, blue below)";
   if (outliers) text += "; x: " + std::to_string(outliers) + " outliers";
   const double font = std::clamp(0.42 * width / 1100.0, 0.3, 0.6);  // the line fits the width
   cv::putText(img, text, cv::Point(kLeft, height - 10), cv::FONT_HERSHEY_SIMPLEX, font, cv::Scalar(0, 0, 0), 1,

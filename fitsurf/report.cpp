@@ -43,7 +43,8 @@ std::string to_string(OutlineMethod m) {
   return "?";
 }
 
-void write_report(std::ostream& out, const Result& r, const Options& o, const std::string& source) {
+void write_report(std::ostream& out, const Result& r, const Options& o, const std::string& source,
+                  const std::vector<LengthOption>& length_options) {
   const FitResult& f = r.fit;
   const BSplineSurface& s = f.surface;
   JsonWriter j(out);
@@ -53,6 +54,26 @@ void write_report(std::ostream& out, const Result& r, const Options& o, const st
   j.field("input", source);
   j.field("input_points", r.input_points);
   j.field("units", r.units);
+  j.field("cloud_extent", r.extent);  // in the cloud's unit
+  // The length options that acted in the cloud's unit because it is not mm (empty in mm).
+  j.key("length_options_in_cloud_units").begin_array();
+  for (const LengthOption& l : length_options) {
+    j.begin_object();
+    j.field("option", l.option);
+    j.key("value");
+    if (l.values.size() == 1) {
+      j.value(l.values.front());
+    } else {
+      j.begin_array();
+      for (double v : l.values) j.value(v);
+      j.end_array();
+    }
+    j.field("default", l.is_default);
+    j.field("length", l.length);
+    j.field("fraction_of_extent", r.extent > 0 ? l.length / r.extent : 0.0);
+    j.end_object();
+  }
+  j.end_array();
   j.key("selection").begin_object();
   j.field("fitted_points", r.selection.kept.size());
   j.field("dropped_box", r.selection.dropped_box);
@@ -195,8 +216,31 @@ void write_report(std::ostream& out, const Result& r, const Options& o, const st
 
 std::string units_warning(const Result& r) {
   return "the point cloud's scale is " + r.units +
-         ", not mm (oriented without control points, scale bars or known poses): the surface, its mm figures "
-         "and any tool path made from it are in that unit; give triangulate a datum before machining";
+         ", not mm (oriented without control points, scale bars or known poses): the surface and its mm figures "
+         "are in that unit, and the surface file says so (toolpath and rough refuse it); give triangulate a datum "
+         "before machining";
+}
+
+std::string length_options_warning(const std::vector<LengthOption>& options, const Result& r) {
+  std::string s = "these length options act in the cloud's unit, not in mm (the cloud's extent: " + sig(r.extent, 3) + " " +
+                  (r.units == "mm" ? "mm" : "units") + "):";
+  for (std::size_t k = 0; k < options.size(); ++k) {
+    const LengthOption& l = options[k];
+    s += k == 0 ? " " : ", ";
+    s += l.option;
+    for (std::size_t i = 0; i < l.values.size(); ++i) {
+      s += i == 0 ? ' ' : ',';
+      s += sig(l.values[i], 4);
+    }
+    s += l.is_default ? " (default; " : " (";
+    if (!l.note.empty()) s += l.note + ", ";
+    const double percent = r.extent > 0 ? 100 * l.length / r.extent : 0;
+    s += !(r.extent > 0) ? std::string("?") : percent >= 10 ? fixed(percent, 0) : sig(percent, 2);
+    s += " % of the extent)";
+  }
+  s += "; give lengths in the cloud's unit, or give triangulate a datum (control points, scale bars, --marker-side-mm "
+       "or known poses)";
+  return s;
 }
 
 std::vector<std::string> summary(const Result& r, const Options& o) {

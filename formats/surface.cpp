@@ -49,6 +49,9 @@ void check_knots(const std::vector<double>& knots, int degree, int num_poles, co
 }  // namespace
 
 void validate_surface(const BSplineSurface& s, const std::string& source) {
+  if (s.units != kSurfaceUnitMm && s.units != kSurfaceUnitArbitrary) {
+    throw InputError(source, 0, "unknown unit '" + s.units + "': a surface is in mm or 'arbitrary'");
+  }
   for (const auto& [deg, dir] : {std::pair{s.degree_u, "u"}, std::pair{s.degree_v, "v"}}) {
     if (deg < 1 || deg > kMaxDegree) {
       throw InputError(source, 0, std::string("degree in ") + dir + " must be 1.." +
@@ -90,6 +93,7 @@ void validate_surface(const BSplineSurface& s, const std::string& source) {
 
 // Text format (docs/formats.md):
 //   photomill-surface v1
+//   units arbitrary                 (optional; absent: mm)
 //   degrees p q
 //   poles nu nv
 //   rational 0|1
@@ -136,7 +140,15 @@ BSplineSurface read_surface(std::istream& in, const std::string& source) {
     if (f[1] != "v1") lines.fail("unsupported surface format version '" + std::string(f[1]) + "'");
   }
   {
-    const auto f = expect_line("'degrees p q'");
+    auto f = expect_line("'degrees p q'");
+    if (!f.empty() && f[0] == "units") {
+      keyword(f, "units", 1);
+      if (f[1] != kSurfaceUnitMm && f[1] != kSurfaceUnitArbitrary) {
+        lines.fail("unknown unit '" + std::string(f[1]) + "': a surface is in mm (no 'units' line) or 'units arbitrary'");
+      }
+      s.units = std::string(f[1]);
+      f = expect_line("'degrees p q'");
+    }
     keyword(f, "degrees", 2);
     s.degree_u = integer(f[1], "degree p", 1, kMaxDegree);
     s.degree_v = integer(f[2], "degree q", 1, kMaxDegree);
@@ -203,6 +215,8 @@ BSplineSurface read_surface(std::istream& in, const std::string& source) {
 void write_surface(std::ostream& out, const BSplineSurface& s) {
   validate_surface(s, "surface to write");
   std::string text = "photomill-surface v1\n" + stamp_line(std::nullopt);
+  // Only a surface not in mm says so: a file without the line reads as mm, as before.
+  if (!s.in_mm()) text += "units " + s.units + "\n";
   text += "degrees " + std::to_string(s.degree_u) + " " + std::to_string(s.degree_v) + "\n";
   text += "poles " + std::to_string(s.num_poles_u) + " " + std::to_string(s.num_poles_v) + "\n";
   text += std::string("rational ") + (s.rational() ? "1" : "0") + "\n";
@@ -214,7 +228,8 @@ void write_surface(std::ostream& out, const BSplineSurface& s) {
     }
     text += '\n';
   }
-  text += "# pole i j x_mm y_mm z_mm" + std::string(s.rational() ? " weight" : "") + "\n";
+  text += (s.in_mm() ? "# pole i j x_mm y_mm z_mm" : "# pole i j x y z") + std::string(s.rational() ? " weight" : "") +
+          (s.in_mm() ? "" : " (units " + s.units + ": not mm)") + "\n";
   for (int i = 0; i < s.num_poles_u; ++i) {
     for (int j = 0; j < s.num_poles_v; ++j) {
       const auto& p = s.pole(i, j);

@@ -14,6 +14,11 @@
 
 namespace photomill {
 
+// The units a surface may have: its poles in mm, or in the arbitrary unit of a reconstruction
+// without a datum.
+inline constexpr const char* kSurfaceUnitMm = "mm";
+inline constexpr const char* kSurfaceUnitArbitrary = "arbitrary";
+
 struct BSplineSurface {
   int degree_u = 3;                  // p
   int degree_v = 3;                  // q
@@ -21,21 +26,27 @@ struct BSplineSurface {
   std::vector<double> knots_v;       // V, non-decreasing, size num_poles_v + q + 1
   int num_poles_u = 0;               // n + 1
   int num_poles_v = 0;               // m + 1
-  std::vector<Eigen::Vector3d> poles_mm;  // P[i][j] at index i * num_poles_v + j, world mm
+  std::vector<Eigen::Vector3d> poles_mm;  // P[i][j] at index i * num_poles_v + j, world mm (see units)
   std::vector<double> weights;       // empty: non-rational; else one positive weight per pole
   // Optional outline of the data in parameter space: a simple closed polygon (first vertex not
   // repeated), counter-clockwise. Empty: the whole domain.
   std::vector<Eigen::Vector2d> boundary_uv;
+  // The unit of the poles: "mm", or "arbitrary" for a surface fitted to a cloud oriented without
+  // a datum (PointCloud::units; its first camera baseline is 1), which no tool path may take as
+  // mm. The text format writes a `units arbitrary` line; a file without one is in mm.
+  std::string units = "mm";
 
   Eigen::Vector3d& pole(int i, int j) { return poles_mm[static_cast<std::size_t>(i) * num_poles_v + j]; }
   const Eigen::Vector3d& pole(int i, int j) const {
     return poles_mm[static_cast<std::size_t>(i) * num_poles_v + j];
   }
   bool rational() const { return !weights.empty(); }
+  bool in_mm() const { return units == kSurfaceUnitMm; }
   bool operator==(const BSplineSurface&) const = default;
 };
 
-// Checks sizes, knot order, finite values, positive weights, a non-degenerate domain.
+// Checks sizes, knot order, finite values, positive weights, a non-degenerate domain, a known unit
+// (kSurfaceUnits).
 // Throws InputError(source, 0, problem).
 void validate_surface(const BSplineSurface& s, const std::string& source);
 

@@ -104,8 +104,45 @@ INSTANTIATE_TEST_SUITE_P(
         BadSurface{"pole_order", replace_line(good_text(), "pole 0 1 ", "pole 0 2 1 2 3"), "s.surf:10: expected pole 0 1"},
         BadSurface{"pole_nan", replace_line(good_text(), "pole 0 1 ", "pole 0 1 1 inf 3"), "s.surf:10: y_mm is not a finite number"},
         BadSurface{"truncated", good_text().substr(0, good_text().find("pole 2 0")), "unexpected end of input: expected 'pole 2 0"},
-        BadSurface{"trailing", good_text() + "pole 9 9 1 2 3\n", "unexpected content after 'end'"}),
+        BadSurface{"trailing", good_text() + "pole 9 9 1 2 3\n", "unexpected content after 'end'"},
+        BadSurface{"unit_word", replace_line(good_text(), "degrees", "units inch\ndegrees 3 2"),
+                   "s.surf:3: unknown unit 'inch': a surface is in mm (no 'units' line) or 'units arbitrary'"},
+        BadSurface{"unit_values", replace_line(good_text(), "degrees", "units arbitrary mm\ndegrees 3 2"),
+                   "s.surf:3: 'units' takes 1 values, got 2"},
+        BadSurface{"unit_late", replace_line(good_text(), "poles", "units arbitrary\npoles 5 4"),
+                   "s.surf:4: expected 'poles', got 'units'"}),
     [](const auto& info) { return std::string(info.param.name); });
+
+// A surface fitted to a cloud without a datum keeps its unit: the writer adds `units arbitrary`
+// (and only then), the reader gives it back; a file without the line is in mm.
+TEST(Surface, ArbitraryUnitsRoundTrip) {
+  for (const auto& [rational, boundary] : {std::pair{false, false}, std::pair{true, true}}) {
+    BSplineSurface s = sample_surface(rational, boundary);
+    std::ostringstream mm;
+    write_surface(mm, s);
+    EXPECT_EQ(mm.str().find("units"), std::string::npos) << mm.str();
+    s.units = "arbitrary";
+    std::stringstream io;
+    write_surface(io, s);
+    EXPECT_NE(io.str().find("\nunits arbitrary\ndegrees "), std::string::npos) << io.str();
+    const BSplineSurface back = read_surface(io, "s.surf");
+    EXPECT_EQ(back.units, "arbitrary");
+    EXPECT_FALSE(back.in_mm());
+    EXPECT_EQ(back, s);
+  }
+  std::istringstream in(good_text());
+  EXPECT_TRUE(read_surface(in, "s.surf").in_mm());
+  std::istringstream explicit_mm(replace_line(good_text(), "degrees", "units mm\ndegrees 3 2"));
+  EXPECT_EQ(read_surface(explicit_mm, "s.surf"), sample_surface(false, false));
+}
+
+TEST(Surface, UnknownUnitIsNotWritten) {
+  BSplineSurface s = sample_surface(false, false);
+  s.units = "inch";
+  std::ostringstream out;
+  EXPECT_THROW(write_surface(out, s), InputError);
+  EXPECT_EQ(out.str(), "");
+}
 
 TEST(Surface, CrlfIsAccepted) {
   std::string text = good_text();

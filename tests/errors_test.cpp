@@ -410,6 +410,8 @@ void write_fixtures(const fs::path& dir) {
   f["part_crlf.surf"] = crlf(surf);
   f["part_bom.surf"] = bom(surf);
   f["part_dup.surf"] = replace_all(surf, "pole 1 2 ", "pole 1 1 ");
+  f["part_unit.surf"] = replace_all(surf, "degrees 3 3\n", "units inch\ndegrees 3 3\n");
+  f["part_arbitrary.surf"] = replace_all(surf, "degrees 3 3\n", "units arbitrary\ndegrees 3 3\n");
   f["junk.step"] = junk();
   f["empty.step"] = "";
 

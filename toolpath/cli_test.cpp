@@ -137,6 +137,40 @@ TEST(ToolpathCli, OutputFileOnlyOnSuccess) {
   EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 2);
 }
 
+// A surface fitted to a cloud oriented without a datum (`units arbitrary`) is refused: one line
+// naming the file and why, exit 1, no output. The same surface in mm is machined.
+TEST(ToolpathCli, RefusesASurfaceOfArbitraryScale) {
+  TempDir dir;
+  const fs::path out = dir.path() / "part.cl", surf = dir.path() / "ridge.surf";
+  BSplineSurface ridge = test::cylinder_surface(20, true);
+  ridge.units = "arbitrary";
+  {
+    std::ofstream f(surf);
+    write_surface(f, ridge);
+  }
+  ToolResult r = run_tool("toolpath", quick({"-o", out.string(), surf.string()}));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.out, "");
+  EXPECT_EQ(r.err, "toolpath: " + surf.string() +
+                       ": the surface's scale is arbitrary (fitted from a cloud oriented without a datum): a tool path "
+                       "needs mm; give triangulate control points, scale bars, --marker-side-mm or known poses\n");
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 1);
+  std::ostringstream text;
+  write_surface(text, ridge);
+  r = run_tool("toolpath", quick({"-"}), text.str());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err.rfind("toolpath: <stdin>: the surface's scale is arbitrary", 0), 0u) << r.err;
+  ridge.units = "mm";
+  {
+    std::ofstream f(surf);
+    write_surface(f, ridge);
+  }
+  r = run_tool("toolpath", quick({"-o", out.string(), surf.string()}));
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(out));
+}
+
 TEST(ToolpathCli, StepAndIgesInputGiveOnlyClDataOnStdout) {
   TempDir dir;
   const BSplineSurface ridge = test::cylinder_surface(20, true);

@@ -109,6 +109,13 @@ LoadedSurface load_surface(const std::string& path, std::optional<std::size_t> f
   std::istringstream in(data);
   LoadedSurface out;
   out.surface = read_surface(in, source);
+  // A tool path is in mm: a surface in another unit would be machined at a wrong scale, silently.
+  if (!out.surface.in_mm()) {
+    throw InputError(source, 0,
+                     "the surface's scale is " + out.surface.units +
+                         " (fitted from a cloud oriented without a datum): a tool path needs mm; give triangulate "
+                         "control points, scale bars, --marker-side-mm or known poses");
+  }
   return out;
 }
 

@@ -23,7 +23,8 @@ struct LoadedSurface {
 // whose first line is an 80-column IGES record (or whose name ends in .step/.stp/.p21/.iges/.igs)
 // goes to Open CASCADE, anything else is read as photomill surface text (so its errors name the
 // line). STEP/IGES from stdin pass through a temporary file. `face` picks a face of a CAD file;
-// unset: the first. Throws InputError for unreadable input, UsageError for a face out of range.
+// unset: the first. Throws InputError for unreadable input and for a surface not in mm (`units
+// arbitrary`: toolpath, rough and cutsim work in mm), UsageError for a face out of range.
 LoadedSurface load_surface(const std::string& path, std::optional<std::size_t> face);
 
 // A whole STEP or IGES part (path or "-"): every face with S_u x S_v pointing out of the material

@@ -34,6 +34,11 @@ std::string dome_text() {
   return s.str();
 }
 
+std::string replace_first(std::string text, const std::string& what, const std::string& with) {
+  const auto pos = text.find(what);
+  return pos == std::string::npos ? text : text.replace(pos, what.size(), with);
+}
+
 // Fast settings for the CLI cases.
 std::vector<std::string> quick(std::vector<std::string> args) {
   for (const char* a : {"--cell-mm", "0.5", "--step-down-mm", "4"}) args.push_back(a);
@@ -134,6 +139,29 @@ TEST(RoughCli, QuietWritesNothingOnStderrAndTheSameData) {
   EXPECT_EQ(quiet.err, "");
   const ToolResult normal = run_tool("rough", quick({"-"}), dome_text());
   EXPECT_EQ(normal.out, quiet.out);
+}
+
+// rough, like toolpath, refuses a surface of arbitrary scale: one line, exit 1, no output; and so
+// does cutsim, which compares a tool path in mm with the surface.
+TEST(RoughCli, RefusesASurfaceOfArbitraryScale) {
+  TempDir dir;
+  const fs::path out = dir.path() / "rough.cl", surf = dir.path() / "dome.surf";
+  std::ofstream(surf) << replace_first(dome_text(), "\ndegrees ", "\nunits arbitrary\ndegrees ");
+  ToolResult r = run_tool("rough", quick({"-o", out.string(), surf.string()}));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.out, "");
+  EXPECT_EQ(r.err, "rough: " + surf.string() +
+                       ": the surface's scale is arbitrary (fitted from a cloud oriented without a datum): a tool path "
+                       "needs mm; give triangulate control points, scale bars, --marker-side-mm or known poses\n");
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 1);
+  std::ofstream(surf) << dome_text();
+  r = run_tool("rough", quick({"-o", out.string(), surf.string()}));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::ofstream(surf) << replace_first(dome_text(), "\ndegrees ", "\nunits arbitrary\ndegrees ");
+  r = run_tool("cutsim", {surf.string(), out.string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find(surf.string() + ": the surface's scale is arbitrary"), std::string::npos) << r.err;
 }
 
 TEST(RoughCli, OutputFileOnlyOnSuccessAndClpostPostsIt) {

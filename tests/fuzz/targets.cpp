@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
 
 #include <unistd.h>
 
@@ -65,7 +66,15 @@ void point_cloud(const std::string& d) {
   std::istringstream in(d);
   read_point_cloud(in, "fuzz");
 }
-void surface(const std::string& d) { from_stream<read_surface>(d); }
+// What is read is written back and read again unchanged, its unit (`units arbitrary`) included:
+// a surface that lost its unit on the way would be machined as mm.
+void surface(const std::string& d) {
+  std::istringstream in(d);
+  const BSplineSurface s = read_surface(in, "fuzz");
+  std::stringstream io;
+  write_surface(io, s);
+  if (!(read_surface(io, "fuzz (written back)") == s)) throw std::logic_error("the surface changed in a write-read round trip");
+}
 void cl_data(const std::string& d) { from_stream<read_cl>(d); }
 void camera_yaml(const std::string& d) {
   std::istringstream in(d);
