@@ -69,6 +69,7 @@
 #include <StepData_Protocol.hxx>
 #include <StepData_StepModel.hxx>
 #include <StepData_StepWriter.hxx>
+#include <TColStd_HSequenceOfHAsciiString.hxx>
 #include <TCollection_HAsciiString.hxx>
 #include <TColStd_Array1OfInteger.hxx>
 #include <TColStd_Array1OfReal.hxx>
@@ -744,6 +745,16 @@ const std::string& originating_system() {
 
 // STEP's FILE_NAME and FILE_DESCRIPTION in place of Open CASCADE's defaults ('Author',
 // 'Open CASCADE', 'Open CASCADE Model'); the time stamp Open CASCADE set (now) is kept.
+// STEP and IGES can only say millimetres. A surface in another unit (a reconstruction without a
+// datum) says so in words a reader of photomill's files looks for (arbitrary_units_marked):
+// STEP's FILE_DESCRIPTION, and a line of IGES's start section.
+constexpr const char* kArbitraryUnitsMarker = "units arbitrary: NOT mm";
+
+std::string described(const CadHeader& header, const BSplineSurface& surface) {
+  if (surface.in_mm() || header.description.find(kArbitraryUnitsMarker) != std::string::npos) return header.description;
+  return header.description + " (" + kArbitraryUnitsMarker + ")";
+}
+
 void set_step_header(const Handle(StepData_StepModel)& model, const CadHeader& header, const std::string& path) {
   APIHeaderSection_MakeHeader h(model);
   h.SetName(hstring(header_file_name(header, path)));
@@ -779,7 +790,9 @@ void write_step(const BSplineSurface& surface, const std::string& path, const Ca
     if (writer.Transfer(face, STEPControl_AsIs) != IFSelect_RetDone) {
       throw InputError(path, 0, "Open CASCADE could not translate the face to STEP");
     }
-    set_step_header(writer.Model(), header, path);
+    CadHeader h = header;
+    h.description = described(header, surface);
+    set_step_header(writer.Model(), h, path);
     // What STEPControl_Writer::Write does (StepSelect_WorkLibrary::WriteFile), with exact reals.
     StepData_StepWriter sw(writer.Model());
     use_exact_reals(sw.FloatWriter());
@@ -798,6 +811,14 @@ void write_iges(const BSplineSurface& surface, const std::string& path, const Ca
     if (!writer.AddShape(face)) throw InputError(path, 0, "Open CASCADE could not translate the face to IGES");
     writer.ComputeModel();
     set_iges_header(writer.Model(), header, path);
+    if (!surface.in_mm()) {
+      // The start section is free text for people, 72 columns a line: the marker on its own line.
+      Handle(TColStd_HSequenceOfHAsciiString) start = new TColStd_HSequenceOfHAsciiString;
+      start->Append(new TCollection_HAsciiString("B-spline surface fitted by photomill,"));
+      start->Append(new TCollection_HAsciiString(kArbitraryUnitsMarker));
+      start->Append(new TCollection_HAsciiString("(the point cloud was oriented without a datum)"));
+      writer.Model()->SetStartSection(start);
+    }
     // What IGESControl_Writer::Write does, with exact reals.
     IGESData_IGESWriter iw(writer.Model());
     use_exact_reals(iw.FloatWriter());
@@ -839,9 +860,28 @@ CadKind kind_of(const std::string& path) {
   throw InputError(path, 0, "neither a STEP nor an IGES file");
 }
 
+// True if the file's header carries kArbitraryUnitsMarker (STEP's FILE_DESCRIPTION, which Open
+// CASCADE wraps across lines, or IGES's start section), read as text from the file's start.
+bool arbitrary_units_marked(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string head(8192, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(std::max<std::streamsize>(in.gcount(), 0)));
+  std::string joined;
+  for (char c : head) {
+    if (c != '\n' && c != '\r') joined += c;
+  }
+  return joined.find(kArbitraryUnitsMarker) != std::string::npos;
+}
+
 CadPart read_part(const std::string& path, CadKind kind, double mesh_deflection_mm, bool mesh_one_face = false) {
-  return kind == CadKind::Step ? read_with<STEPControl_Reader>(path, CadKind::Step, "STEP", mesh_deflection_mm, mesh_one_face)
-                               : read_with<IGESControl_Reader>(path, CadKind::Iges, "IGES", mesh_deflection_mm, mesh_one_face);
+  CadPart part = kind == CadKind::Step
+                     ? read_with<STEPControl_Reader>(path, CadKind::Step, "STEP", mesh_deflection_mm, mesh_one_face)
+                     : read_with<IGESControl_Reader>(path, CadKind::Iges, "IGES", mesh_deflection_mm, mesh_one_face);
+  if (arbitrary_units_marked(path)) {
+    for (BSplineSurface& f : part.faces) f.units = kSurfaceUnitArbitrary;
+  }
+  return part;
 }
 
 }  // namespace

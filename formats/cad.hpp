@@ -48,6 +48,9 @@ std::vector<BSplineSurface> read_cad(const std::string& path);
 // A whole part: every face as read_cad gives it, which way each faces, and a triangle mesh of
 // all of them (Open CASCADE's BRepMesh_IncrementalMesh, every triangle within
 // `mesh_deflection_mm` of its face; faces share their edges' nodes, so the mesh has no gaps).
+// A surface not in mm (units arbitrary) is written with "units arbitrary: NOT mm" in STEP's
+// FILE_DESCRIPTION or on a line of IGES's start section (the files themselves can only say
+// millimetres); the readers give such a file's faces units arbitrary.
 struct CadPart {
   std::vector<BSplineSurface> faces;
   // Per face: true where the face is reversed in its shell, i.e. its outward normal (away from

@@ -409,6 +409,31 @@ TEST(Cad, FilesSayMillimetres) {
 
 // The headers say what the file is and who wrote it, not Open CASCADE's placeholders (issue 27):
 // the name given (not the temporary written to), photomill as the originating system.
+// A surface of arbitrary scale: the file says millimetres (it can say nothing else) and, in words,
+// that it is not; read back, its faces are of arbitrary scale. A surface in mm reads back in mm.
+TEST(Cad, AnArbitraryScaleReadsBackAsArbitrary) {
+  TempDir dir;
+  for (const char* units : {"arbitrary", "mm"}) {
+    BSplineSurface s = bicubic(false);
+    s.units = units;
+    for (const char* ext : {".step", ".igs"}) {
+      const std::string path = dir.file(std::string("s_") + units + ext);
+      if (std::string(ext) == ".step") {
+        write_step(s, path);
+      } else {
+        write_iges(s, path);
+      }
+      std::ifstream in(path);
+      std::string text((std::istreambuf_iterator<char>(in)), {});
+      std::erase(text, '\n');  // Open CASCADE wraps STEP's strings
+      EXPECT_EQ(text.find("NOT mm") != std::string::npos, std::string(units) == "arbitrary") << path;
+      const std::vector<BSplineSurface> faces = read_cad(path);
+      ASSERT_EQ(faces.size(), 1u) << path;
+      EXPECT_EQ(faces[0].units, units) << path;
+    }
+  }
+}
+
 TEST(Cad, HeadersNameTheFileAndTheSystem) {
   TempDir dir;
   write_step(bicubic(false), dir.file(".tmp123"), CadHeader{"part.step"});

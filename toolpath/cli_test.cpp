@@ -169,6 +169,26 @@ TEST(ToolpathCli, RefusesASurfaceOfArbitraryScale) {
   r = run_tool("toolpath", quick({"-o", out.string(), surf.string()}));
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_TRUE(fs::exists(out));
+  // STEP and IGES can only say mm: the files fitsurf writes from such a surface say it in their
+  // header (STEP's description, IGES's start section), and toolpath refuses them too.
+  fs::remove(out);
+  ridge.units = "arbitrary";
+  for (const char* name : {"ridge.step", "ridge.igs"}) {
+    const fs::path cad = dir.path() / name;
+    if (cad.extension() == ".step") {
+      write_step(ridge, cad.string());
+    } else {
+      write_iges(ridge, cad.string());
+    }
+    for (bool all_faces : {false, true}) {
+      std::vector<std::string> args{"-o", out.string(), cad.string()};
+      if (all_faces) args.push_back("--all-faces");
+      r = run_tool("toolpath", quick(args));
+      EXPECT_EQ(r.exit_code, 1) << name;
+      EXPECT_NE(r.err.find(cad.string() + ": the surface's scale is arbitrary"), std::string::npos) << r.err;
+      EXPECT_FALSE(fs::exists(out));
+    }
+  }
 }
 
 TEST(ToolpathCli, StepAndIgesInputGiveOnlyClDataOnStdout) {

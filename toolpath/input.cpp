@@ -61,6 +61,15 @@ private:
   std::string path_;
 };
 
+// A tool path is in mm: a surface in another unit would be machined at a wrong scale, silently.
+void require_mm(const BSplineSurface& surface, const std::string& source) {
+  if (surface.in_mm()) return;
+  throw InputError(source, 0,
+                   "the surface's scale is " + surface.units +
+                       " (fitted from a cloud oriented without a datum): a tool path needs mm; give triangulate "
+                       "control points, scale bars, --marker-side-mm or known poses");
+}
+
 LoadedSurface pick(CadPart part, std::optional<std::size_t> face, const std::string& source) {
   std::vector<BSplineSurface>& faces = part.faces;
   if (faces.empty()) throw InputError(source, 0, "no faces");
@@ -87,6 +96,7 @@ LoadedSurface pick(CadPart part, std::optional<std::size_t> face, const std::str
     }
   }
   out.surface = std::move(faces[out.face]);
+  require_mm(out.surface, source);
   return out;
 }
 
@@ -109,19 +119,14 @@ LoadedSurface load_surface(const std::string& path, std::optional<std::size_t> f
   std::istringstream in(data);
   LoadedSurface out;
   out.surface = read_surface(in, source);
-  // A tool path is in mm: a surface in another unit would be machined at a wrong scale, silently.
-  if (!out.surface.in_mm()) {
-    throw InputError(source, 0,
-                     "the surface's scale is " + out.surface.units +
-                         " (fitted from a cloud oriented without a datum): a tool path needs mm; give triangulate "
-                         "control points, scale bars, --marker-side-mm or known poses");
-  }
+  require_mm(out.surface, source);
   return out;
 }
 
 namespace {
 
-LoadedPart outward(CadPart part) {
+LoadedPart outward(CadPart part, const std::string& source) {
+  for (const BSplineSurface& f : part.faces) require_mm(f, source);
   LoadedPart out;
   for (std::size_t i = 0; i < part.faces.size(); ++i) {
     out.faces.push_back(part.reversed[i] ? mirrored_u(part.faces[i]) : std::move(part.faces[i]));
@@ -136,15 +141,15 @@ LoadedPart outward(CadPart part) {
 
 LoadedPart load_part(const std::string& path, double mesh_deflection_mm, bool mesh_one_face) {
   const std::string source = tool::source_name(path);
-  if (path != "-" && cad_extension(path)) return outward(read_cad_part(path, mesh_deflection_mm, mesh_one_face));
+  if (path != "-" && cad_extension(path)) return outward(read_cad_part(path, mesh_deflection_mm, mesh_one_face), source);
   const std::string data = tool::read_all(path, kMaxInputBytes);
   if (!looks_like_cad(std::string_view(data).substr(0, 1024))) {
     throw InputError(source, 1, "not a STEP or IGES file: --all-faces machines a whole CAD part (a photomill surface is one face)");
   }
-  if (path != "-") return outward(read_cad_part(path, mesh_deflection_mm, mesh_one_face));
+  if (path != "-") return outward(read_cad_part(path, mesh_deflection_mm, mesh_one_face), source);
   const TempFile tmp(data);
   try {
-    return outward(read_cad_part(tmp.path(), mesh_deflection_mm, mesh_one_face));
+    return outward(read_cad_part(tmp.path(), mesh_deflection_mm, mesh_one_face), source);
   } catch (const InputError& e) {
     throw InputError(source, e.line(), e.message());
   }
