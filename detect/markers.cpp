@@ -890,6 +890,9 @@ MarkerDetection detect_markers(const cv::Mat& grey, const std::string& image_nam
   out.height_px = grey.rows;
   auto params = cv::aruco::DetectorParameters::create();
   params->errorCorrectionRate = options.error_correction_rate;
+  // The candidates' adaptive thresholds: windows from the smallest (OpenCV's 3 px by default) to
+  // OpenCV's largest, 23, in steps of 10 (MarkerDetectOptions::threshold_window_min_px).
+  params->adaptiveThreshWinSizeMin = options.threshold_window_min_px;
   switch (options.refinement) {
     case CornerRefinement::Subpix:
       // Tighter than OpenCV's defaults (0.1 px, 30 iterations), so the comparison is fair to it.

@@ -120,6 +120,11 @@ struct MarkerDetectOptions {
   EdgeFitOptions edges;
   // OpenCV's detector: errorCorrectionRate (fraction of the dictionary's correctable bits used).
   double error_correction_rate = 0.6;
+  // The smallest of the candidate search's adaptive-threshold windows (then +10 px up to 23),
+  // OpenCV's 3 by default. The 3 px window turns JPEG noise and texture into many small contours:
+  // on the demo's photos it is three quarters of the search's time, but some small, foreshortened
+  // markers are found only with it (docs/detect.md, "Speed").
+  int threshold_window_min_px = 3;
 };
 
 // A marker OpenCV found but photomill dropped, and why.
