@@ -5,6 +5,8 @@
 // "Bundle adjustment - a modern synthesis", 2000, sec. 3-4; Ceres examples/bundle_adjuster.cc).
 #pragma once
 
+#include <array>
+
 #include <ceres/ceres.h>
 
 #include "triangulate/analytic_residuals.hpp"
@@ -102,6 +104,18 @@ inline ceres::CostFunction* reprojection_error_with_intrinsics(int block_size, c
   }
 }
 
+// aa(R R0^T): the angle-axis vector of the rotation from R0 (the unit quaternion q0) to the
+// rotation of pose[0..2], for the pose priors below.
+template <typename T>
+void rotation_from(const T* pose, const std::array<double, 4>& q0, T* aa) {
+  T q[4], q0_inverse[4], dq[4];
+  ceres::AngleAxisToQuaternion(pose, q);
+  q0_inverse[0] = T(q0[0]);
+  for (int i = 1; i < 4; ++i) q0_inverse[i] = T(-q0[static_cast<std::size_t>(i)]);
+  ceres::QuaternionProduct(q, q0_inverse, dq);
+  ceres::QuaternionToAngleAxis(dq, aa);
+}
+
 // Reprojection error of a photo taken with a rig (scene.hpp, SceneRig): the camera's pose is the
 // rig's pose in the frame composed with the camera's pose in the rig,
 //   x_rig = R(a) X + s,  x_cam = R(b) x_rig + t,
@@ -179,12 +193,8 @@ struct RigPosePrior {
 
   template <typename T>
   bool operator()(const T* pose, T* r) const {
-    T q[4], q0_inverse[4], dq[4], aa[3];
-    ceres::AngleAxisToQuaternion(pose, q);
-    q0_inverse[0] = T(q0[0]);
-    for (int i = 1; i < 4; ++i) q0_inverse[i] = T(-q0[static_cast<std::size_t>(i)]);
-    ceres::QuaternionProduct(q, q0_inverse, dq);
-    ceres::QuaternionToAngleAxis(dq, aa);
+    T aa[3];
+    rotation_from(pose, q0, aa);
     for (int i = 0; i < 3; ++i) {
       r[i] = aa[i] * inv_sigma[static_cast<std::size_t>(i)];
       r[3 + i] = (pose[3 + i] - t0[static_cast<std::size_t>(i)]) * inv_sigma[static_cast<std::size_t>(3 + i)];
@@ -238,12 +248,8 @@ struct PosePrior {
 
   template <typename T>
   bool operator()(const T* pose, T* r) const {
-    T q[4], q0_inverse[4], dq[4], aa[3];
-    ceres::AngleAxisToQuaternion(pose, q);
-    q0_inverse[0] = T(q0[0]);
-    for (int i = 1; i < 4; ++i) q0_inverse[i] = T(-q0[static_cast<std::size_t>(i)]);
-    ceres::QuaternionProduct(q, q0_inverse, dq);
-    ceres::QuaternionToAngleAxis(dq, aa);
+    T aa[3];
+    rotation_from(pose, q0, aa);
     // C = -R^T t: rotate t by the inverse rotation (-aa).
     const T inverse[3] = {-pose[0], -pose[1], -pose[2]};
     T rt[3];
