@@ -232,13 +232,13 @@ std::shared_ptr<ceres::ParameterBlockOrdering> build_problem(Scene& scene, const
       double* block = rig.rig_from_world[f].data();
       if (!problem.HasParameterBlock(block)) continue;
       ordering->AddElementToGroup(block, 1);
-      if (f == setup.rig_reference_frame) problem.SetParameterBlockConstant(block);
+      if (f == setup.rig_reference_frame || setup.fix_poses) problem.SetParameterBlockConstant(block);
     }
     for (std::size_t k = 0; k < rig.cam_from_rig.size(); ++k) {
       double* block = rig.cam_from_rig[k].data();
       if (!problem.HasParameterBlock(block)) continue;
       ordering->AddElementToGroup(block, 1);
-      const bool prior = k > 0 && k < setup.cam_from_rig_sigma.size() && setup.cam_from_rig_sigma[k];
+      const bool prior = k > 0 && k < setup.cam_from_rig_sigma.size() && setup.cam_from_rig_sigma[k] && !setup.fix_poses;
       if (prior) {
         problem.AddResidualBlock(RigPosePrior::create(setup.cam_from_rig_given[k], *setup.cam_from_rig_sigma[k]), nullptr, block);
       } else {
