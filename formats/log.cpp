@@ -7,6 +7,8 @@
 #include <cstdlib>
 #include <mutex>
 #include <thread>
+
+#include <pthread.h>
 #include <vector>
 
 #include "formats/text.hpp"
@@ -61,8 +63,20 @@ std::string seconds_text(Clock::duration d) {
 // The steps alive and the thread that reports the innermost one. A function-local static: its
 // destructor (at exit) stops and joins the thread. A child made by fork() (formats/cad.cpp) has
 // no watcher thread and leaves by _exit, so it never joins one.
+//
+// fork() copies only the forking thread: a lock another thread held at that moment (the
+// allocator's, taken while the watcher formats a line or while the thread is being set up) stays
+// locked in the child forever, and the child hangs in its first allocation (seen under
+// AddressSanitizer: toolpath --all-faces starts a step, so the thread, then forks the STEP
+// reader at once). So the thread has finished starting before push() returns, it does all its
+// work under m_, and the fork handlers hold m_ across every fork.
 class Watcher {
 public:
+  Watcher() {
+    ::pthread_atfork([] { watcher_for_fork().m_.lock(); }, [] { watcher_for_fork().m_.unlock(); },
+                     [] { watcher_for_fork().m_.unlock(); });
+  }
+
   struct Entry {
     unsigned long id;
     std::string what;
@@ -73,7 +87,10 @@ public:
 
   unsigned long push(std::string what) {
     std::unique_lock<std::mutex> lock(m_);
-    if (!thread_.joinable()) thread_ = std::thread([this] { loop(); });
+    if (!thread_.joinable()) {
+      thread_ = std::thread([this] { loop(); });
+      cv_.wait(lock, [this] { return running_; });
+    }
     const auto now = Clock::now();
     const auto delay = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(progress_delay_s()));
     steps_.push_back({++last_id_, std::move(what), now, now + delay});
@@ -113,8 +130,12 @@ public:
   }
 
 private:
+  static Watcher& watcher_for_fork();
+
   void loop() {
     std::unique_lock<std::mutex> lock(m_);
+    running_ = true;
+    cv_.notify_all();
     while (!stop_) {
       if (steps_.empty()) {
         cv_.wait(lock);
@@ -137,6 +158,7 @@ private:
   std::vector<Entry> steps_;
   unsigned long last_id_ = 0;
   bool stop_ = false;
+  bool running_ = false;  // the thread has started (loop() holds or waits on m_)
   std::thread thread_;
 };
 
@@ -144,6 +166,8 @@ Watcher& watcher() {
   static Watcher w;
   return w;
 }
+
+Watcher& Watcher::watcher_for_fork() { return watcher(); }
 
 }  // namespace
 

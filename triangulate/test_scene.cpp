@@ -181,6 +181,7 @@ RigSceneTruth make_rig_scene(int frames, double noise_px, unsigned seed) {
   SceneOptions o;
   o.views = 2 * frames;
   o.noise_px = 0;
+  o.seed = seed;
   const SceneTruth base = make_scene(o);
   RigSceneTruth s;
   RigCamera left{"left_", base.camera, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), std::nullopt};

@@ -57,6 +57,7 @@ SceneTruth make_scene(const SceneOptions& options);
 // 0, 2, 4...): camera 0 ("left_", make_scene's camera) is the rig's frame; camera 1 ("right_",
 // focal 2600 px, its own distortion) sits 80 mm to its right, turned 6 degrees towards it. The
 // world is the rig's frame at frame 00 (left_00.png, right_00.png), as triangulate --rig makes it.
+// `seed` draws the views (make_scene's) and the noise.
 struct RigSceneTruth {
   Rig rig;                                  // the true rig
   std::vector<Pose> poses;                  // every photo's cam_from_world
