@@ -310,9 +310,8 @@ test::Accuracy rig_accuracy(const Reconstruction& r, const test::RigSceneTruth& 
 }
 
 // A stereo rig over six frames: frame 00 is placed by the rig, the others by PnP of one photo and
-// the rig for the other, and the adjustment holds every frame to the rig. Against the same
-// photos adjusted one by one (the poses of frame 00 known, the others free), the rig gives every
-// photo a pose and better camera centres.
+// the rig for the other, and the adjustment holds every frame to the rig: every photo is posed,
+// each frame's two poses exactly the rig's relative pose apart.
 TEST(Reconstruct, RigPlacesEveryFrameAndHoldsThemToIt) {
   const test::RigSceneTruth t = test::make_rig_scene(6, 0.05, 1);
   const Reconstruction r = reconstruct(rig_input(t, t.rig), {});
@@ -333,14 +332,13 @@ TEST(Reconstruct, RigPlacesEveryFrameAndHoldsThemToIt) {
     const Eigen::Vector3d expected = t.rig.cameras[1].cam_from_rig_translation_mm;
     EXPECT_NEAR((geometry::translation_of(right_from_left) - expected).norm(), 0, 1e-9) << im.name;
   }
-  ReconstructInput free = rig_input(t, t.rig);
-  free.rig.reset();
-  const Reconstruction f = reconstruct(free, {});
-  const test::Accuracy a = rig_accuracy(r, t), b = rig_accuracy(f, t);
-  // Measured (seed 1): centres 0.0108 mm with the rig, 0.0172 mm free; the part 0.0078 and
-  // 0.0100 mm. Seeds 1-8: centres 0.010-0.016 mm with the rig, 0.017-0.022 mm free.
+  const test::Accuracy a = rig_accuracy(r, t);
+  // Measured (seed 1): centres 0.0108 mm, part 0.0078 mm; the same photos posed one by one (frame
+  // 00's poses known, no rig) 0.0172 and 0.0100 mm. Seeds 1-8: centres 0.010-0.016 mm with the
+  // rig, 0.017-0.022 mm without; clang's build draws another scene (argument evaluation order):
+  // 0.0144 against 0.0139 mm. So the rig is not always better here, and only bounded.
   EXPECT_EQ(a.cameras, 12u);
-  EXPECT_LT(a.centre_rms_mm, b.centre_rms_mm);
+  EXPECT_LT(a.centre_rms_mm, 0.03);
   EXPECT_LT(a.part_rms_mm, 0.02);
 }
 
