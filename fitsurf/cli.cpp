@@ -294,9 +294,7 @@ void write_outputs(const Cli& c, const Options& options, const PointCloud& cloud
     CadHeader h{name == "-" ? "" : std::filesystem::path(name).filename().string()};
     if (!surface.in_mm()) {
       // STEP and IGES have no arbitrary unit: the file says millimetres. The warning says it is
-      // not, and so does STEP's FILE_DESCRIPTION.
-      h.description = "B-spline surface fitted by photomill, units arbitrary: NOT mm (the point cloud was oriented "
-                      "without a datum), although the file says millimetres";
+      // not, and so do the writers in the file's header (formats/cad.cpp).
       log::warn(name + ": the CAD file says millimetres, but the surface's scale is arbitrary (fitted from a cloud "
                 "oriented without a datum): scale it before any use in mm");
     }

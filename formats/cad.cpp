@@ -364,14 +364,14 @@ std::string lower(std::string s) {
 }
 
 // The first KiB of an existing, non-empty, readable file.
-std::string file_head(const std::string& path) {
+std::string file_head(const std::string& path, std::size_t bytes = 1024) {
   std::error_code ec;
   const auto status = std::filesystem::status(path, ec);
   if (!std::filesystem::exists(status)) throw InputError(path, 0, "cannot open: no such file");
   if (std::filesystem::is_directory(status)) throw InputError(path, 0, "cannot read: is a directory");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, 0, std::string("cannot open: ") + std::strerror(errno));
-  std::string head(1024, '\0');
+  std::string head(bytes, '\0');
   in.read(head.data(), static_cast<std::streamsize>(head.size()));
   head.resize(static_cast<std::size_t>(in.gcount()));
   if (head.empty()) throw InputError(path, 0, "empty file");
@@ -752,6 +752,10 @@ constexpr const char* kArbitraryUnitsMarker = "units arbitrary: NOT mm";
 
 std::string described(const CadHeader& header, const BSplineSurface& surface) {
   if (surface.in_mm() || header.description.find(kArbitraryUnitsMarker) != std::string::npos) return header.description;
+  if (header.description == CadHeader{}.description) {
+    return std::string("B-spline surface fitted by photomill, ") + kArbitraryUnitsMarker +
+           " (the point cloud was oriented without a datum), although the file says millimetres";
+  }
   return header.description + " (" + kArbitraryUnitsMarker + ")";
 }
 
@@ -863,10 +867,7 @@ CadKind kind_of(const std::string& path) {
 // True if the file's header carries kArbitraryUnitsMarker (STEP's FILE_DESCRIPTION, which Open
 // CASCADE wraps across lines, or IGES's start section), read as text from the file's start.
 bool arbitrary_units_marked(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::string head(8192, '\0');
-  in.read(head.data(), static_cast<std::streamsize>(head.size()));
-  head.resize(static_cast<std::size_t>(std::max<std::streamsize>(in.gcount(), 0)));
+  const std::string head = file_head(path, 8192);
   std::string joined;
   for (char c : head) {
     if (c != '\n' && c != '\r') joined += c;

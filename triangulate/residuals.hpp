@@ -83,6 +83,18 @@ constexpr int intrinsics_read(const ModelShape& shape) {
   return shape.tilted ? kIntrinsicCount : shape.thin_prism ? kTauX : shape.rational ? kS1 : kK4;
 }
 
+// make.template operator()<N>() for the intrinsics block size N (9, 12, 16, else 18): the cost
+// functions' sizes are template arguments.
+template <class Make>
+ceres::CostFunction* by_block_size(int block_size, Make make) {
+  switch (block_size) {
+    case kK4: return make.template operator()<kK4>();
+    case kS1: return make.template operator()<kS1>();
+    case kTauX: return make.template operator()<kTauX>();
+    default: return make.template operator()<kIntrinsicCount>();
+  }
+}
+
 // ReprojectionErrorWithIntrinsics<block_size>, block_size one of 9, 12, 16, 18 and at least
 // intrinsics_read(shape); the analytic form (analytic_residuals.hpp) where it covers the model
 // and the block, unless `automatic`.
@@ -92,16 +104,10 @@ inline ceres::CostFunction* reprojection_error_with_intrinsics(int block_size, c
   if (!automatic && block_size == kK4 && analytic_projection_applies(shape)) {
     return new AnalyticReprojectionErrorWithIntrinsics(shape.skew, uv_px.x(), uv_px.y(), sigma_px);
   }
-  auto make = [&]<int N>() -> ceres::CostFunction* {
+  return by_block_size(block_size, [&]<int N>() -> ceres::CostFunction* {
     return new ceres::AutoDiffCostFunction<ReprojectionErrorWithIntrinsics<N>, 2, 6, 3, N>(
         new ReprojectionErrorWithIntrinsics<N>(shape, uv_px, sigma_px));
-  };
-  switch (block_size) {
-    case kK4: return make.template operator()<kK4>();
-    case kS1: return make.template operator()<kS1>();
-    case kTauX: return make.template operator()<kTauX>();
-    default: return make.template operator()<kIntrinsicCount>();
-  }
+  });
 }
 
 // aa(R R0^T): the angle-axis vector of the rotation from R0 (the unit quaternion q0) to the
@@ -160,19 +166,14 @@ struct RigReprojectionError {
 inline ceres::CostFunction* rig_reprojection_error(const CameraModel& camera, int block_size, const Eigen::Vector2d& uv_px,
                                                    double sigma_px) {
   const ModelShape shape = shape_of(camera);
-  auto make = [&]<int N>() -> ceres::CostFunction* {
+  if (block_size == 0) {
+    return new ceres::AutoDiffCostFunction<RigReprojectionError<0>, 2, 6, 6, 3>(
+        new RigReprojectionError<0>(&camera, shape, uv_px, sigma_px));
+  }
+  return by_block_size(block_size, [&]<int N>() -> ceres::CostFunction* {
     return new ceres::AutoDiffCostFunction<RigReprojectionError<N>, 2, 6, 6, 3, N>(
         new RigReprojectionError<N>(&camera, shape, uv_px, sigma_px));
-  };
-  switch (block_size) {
-    case 0:
-      return new ceres::AutoDiffCostFunction<RigReprojectionError<0>, 2, 6, 6, 3>(
-          new RigReprojectionError<0>(&camera, shape, uv_px, sigma_px));
-    case kK4: return make.template operator()<kK4>();
-    case kS1: return make.template operator()<kS1>();
-    case kTauX: return make.template operator()<kTauX>();
-    default: return make.template operator()<kIntrinsicCount>();
-  }
+  });
 }
 
 // Prior on a camera's pose in the rig, as the rig's calibration measured it (rig.yaml's
