@@ -77,29 +77,42 @@ const NormalTable& normal_table() {
 struct Response {
   double r, dr_dx, dr_dsigma;
 };
+constexpr double kMinTrapezoid = 0.05;  // below this b the unit box is exact to ~1e-4 px
 struct Footprint {
   double a = 1, b = 0;  // |n_x|, |n_y| ordered so that a >= b
+  // The response's constants: whether it is the unit box (b < kMinTrapezoid), h1, h2, 1 / (a b).
+  bool box = true;
+  double h1 = 0.5, h2 = 0, inv_ab = 0;
   static Footprint across(const Eigen::Vector2d& n) {
     const double x = std::abs(n.x()), y = std::abs(n.y());
-    return {std::max(x, y), std::min(x, y)};
+    Footprint fp;
+    fp.a = std::max(x, y);
+    fp.b = std::min(x, y);
+    fp.box = fp.b < kMinTrapezoid;
+    if (!fp.box) {
+      fp.h1 = 0.5 * (fp.a + fp.b);
+      fp.h2 = 0.5 * (fp.a - fp.b);
+      fp.inv_ab = 1 / (fp.a * fp.b);
+    }
+    return fp;
   }
 };
-constexpr double kMinTrapezoid = 0.05;  // below this b the unit box is exact to ~1e-4 px
 
 // `inv_sigma` = 1 / sigma (the callers evaluate many x for one sigma).
 Response edge_response(double x, double sigma, double inv_sigma, const Footprint& fp) {
-  const double h1 = fp.b < kMinTrapezoid ? 0.5 : 0.5 * (fp.a + fp.b);
-  // Beyond 8.5 sigma Phi is 0 or 1 to 1e-17: the pixel is plain white or black.
-  if ((x - h1) * inv_sigma > 8.5) return {1, 0, 0};
-  if ((x + h1) * inv_sigma < -8.5) return {0, 0, 0};
+  const double h1 = fp.h1;
+  // Beyond 6 sigma Phi is 0 or 1 to 1e-9 and phi below 6.1e-9, the table's own accuracy: the
+  // pixel is plain white or black (to 1e-6 grey levels at any contrast).
+  if ((x - h1) * inv_sigma > 6) return {1, 0, 0};
+  if ((x + h1) * inv_sigma < -6) return {0, 0, 0};
   const NormalTable& normal = normal_table();
-  if (fp.b < kMinTrapezoid) {
+  if (fp.box) {
     double cp, cm, pp, pm;
     normal((x + 0.5) * inv_sigma, cp, pp);
     normal((x - 0.5) * inv_sigma, cm, pm);
     return {(x + 0.5) * cp + sigma * pp - (x - 0.5) * cm - sigma * pm, cp - cm, pp - pm};
   }
-  const double h2 = 0.5 * (fp.a - fp.b);
+  const double h2 = fp.h2;
   const double offsets[4] = {h1, h2, -h2, -h1};
   const double signs[4] = {1, -1, -1, 1};
   double g0 = 0, g1 = 0, g2 = 0;
@@ -111,8 +124,7 @@ Response edge_response(double x, double sigma, double inv_sigma, const Footprint
     g1 += signs[k] * (u * cdf + sigma * pdf);
     g2 += signs[k] * (0.5 * (u * u + sigma * sigma) * cdf + 0.5 * u * sigma * pdf);
   }
-  const double inv_ab = 1 / (fp.a * fp.b);
-  return {g2 * inv_ab, g1 * inv_ab, sigma * g0 * inv_ab};
+  return {g2 * fp.inv_ab, g1 * fp.inv_ab, sigma * g0 * fp.inv_ab};
 }
 
 // One edge of the initial quadrilateral: t along it from `origin`, s across it, outwards.
@@ -126,6 +138,7 @@ struct EdgeCurve {
   EdgeFrame frame;
   Eigen::VectorXd c;
   double sigma = 0, contrast = 0, rms = 0;
+  std::array<double, 6> shading{};  // a0 a1 a2 b0 b1 b2 (the model's levels, fit_edge_model)
   double band_px = 0;  // the band's half-width in the last round
   double f(double tau) const {
     double v = 0;
@@ -205,9 +218,28 @@ std::vector<Sample> band_samples(const cv::Mat& grey, const Levels& levels, cons
   std::vector<Sample> out;
   out.reserve(static_cast<std::size_t>(r1 - r0 + 1) * static_cast<std::size_t>(c1 - c0 + 1));
   const double inv_cell_blur = 1 / std::sqrt(sigma_px * sigma_px + 1.0 / 12);
+  // On row y, t = d.x (x - ox) + d.y (y - oy) and s = n.x (x - ox) + n.y (y - oy) are linear in x:
+  // the columns with t in [t0, t1] and |s| <= reach are an interval, the only ones visited.
+  auto narrow = [](double coef, double rest, double lo, double hi, double& x_min, double& x_max) {
+    if (std::abs(coef) < 1e-12) {
+      if (rest < lo || rest > hi) x_max = -1e300;  // no column of this row
+      return;
+    }
+    double a = (lo - rest) / coef, b = (hi - rest) / coef;
+    if (a > b) std::swap(a, b);
+    x_min = std::max(x_min, a);
+    x_max = std::min(x_max, b);
+  };
   for (int y = r0; y <= r1; ++y) {
     const auto* row = grey.ptr<std::uint8_t>(y);
-    for (int x = c0; x <= c1; ++x) {
+    double x_min = c0, x_max = c1;
+    const double dy = y - e.origin.y();
+    narrow(e.d.x(), e.d.y() * dy - e.d.x() * e.origin.x(), t0, t1, x_min, x_max);
+    narrow(e.n.x(), e.n.y() * dy - e.n.x() * e.origin.x(), -reach, reach, x_min, x_max);
+    if (!(x_min <= x_max)) continue;
+    const int xa = std::max(c0, static_cast<int>(std::floor(x_min)) - 1);
+    const int xb = std::min(c1, static_cast<int>(std::ceil(x_max)) + 1);
+    for (int x = xa; x <= xb; ++x) {
       const Eigen::Vector2d p(x, y);
       const Eigen::Vector2d q = p - e.origin;
       const double t = e.d.dot(q);
@@ -296,32 +328,64 @@ ModelFit fit_edge_model(const std::vector<Sample>& samples, const Footprint& fp,
     }
     return cost;
   };
-  // J^T J and J^T r at p from its responses `rs`: the rows of J into `J_rows` (N x P), then one
-  // symmetric rank update and one matrix-vector product (Eigen's blocked, vectorised kernels).
+  // J^T J and J^T r at p from its responses `rs`. A sample on a plateau of the model (R' = dR/dsigma
+  // = 0: beyond the blur's reach of the edge, most of the band) has the row (0, .., 0, u, R u),
+  // u = (1, tau, s), so its share of J^T J is u u^T, R u u^T and R^2 u u^T in the shading blocks:
+  // those sums are kept as 3 x 3 moments (and r u, r R u for J^T r). The other samples' rows go
+  // into `J_rows` for one symmetric rank update (Eigen's blocked, vectorised kernels).
   Eigen::Matrix<double, Eigen::Dynamic, P> J_rows(static_cast<Eigen::Index>(samples.size()), P);
   Eigen::VectorXd residuals(static_cast<Eigen::Index>(samples.size()));
   auto normal = [&](const Vec& p, const std::vector<Response>& rs, Mat& JtJ, Vec& Jtr) {
+    // Plateau sums of the monomials (1, tau, s, tau^2, tau s, s^2) weighted by 1, R and R^2, and of
+    // r (1, tau, s) and r R (1, tau, s).
+    std::array<double, 6> w0{}, w1{}, w2{};
+    std::array<double, 3> g0{}, g1{};
+    Eigen::Index rows = 0;
     for (std::size_t i = 0; i < samples.size(); ++i) {
       const Sample& smp = samples[i];
       const Response& resp = rs[i];
-      const auto row_index = static_cast<Eigen::Index>(i);
       const double a = p[NC + 1] + p[NC + 2] * smp.tau + p[NC + 3] * smp.s;
       const double b = p[NC + 4] + p[NC + 5] * smp.tau + p[NC + 6] * smp.s;
-      residuals[row_index] = smp.value - (a + b * resp.r);
+      const double r = smp.value - (a + b * resp.r);
+      if (resp.dr_dx == 0 && resp.dr_dsigma == 0) {
+        const std::array<double, 6> mono{1, smp.tau, smp.s, smp.tau * smp.tau, smp.tau * smp.s, smp.s * smp.s};
+        for (std::size_t k = 0; k < 6; ++k) w0[k] += mono[k];
+        for (std::size_t k = 0; k < 3; ++k) g0[k] += r * mono[k];
+        if (resp.r != 0) {
+          const double R2 = resp.r * resp.r, rR = r * resp.r;
+          for (std::size_t k = 0; k < 6; ++k) w1[k] += resp.r * mono[k], w2[k] += R2 * mono[k];
+          for (std::size_t k = 0; k < 3; ++k) g1[k] += rR * mono[k];
+        }
+        continue;
+      }
+      residuals[rows] = r;
       double tj = 1;
-      for (int j = 0; j < NC; ++j, tj *= smp.tau) J_rows(row_index, j) = -b * resp.dr_dx * tj;
-      J_rows(row_index, NC) = b * resp.dr_dsigma;
-      J_rows(row_index, NC + 1) = 1;
-      J_rows(row_index, NC + 2) = smp.tau;
-      J_rows(row_index, NC + 3) = smp.s;
-      J_rows(row_index, NC + 4) = resp.r;
-      J_rows(row_index, NC + 5) = smp.tau * resp.r;
-      J_rows(row_index, NC + 6) = smp.s * resp.r;
+      for (int j = 0; j < NC; ++j, tj *= smp.tau) J_rows(rows, j) = -b * resp.dr_dx * tj;
+      J_rows(rows, NC) = b * resp.dr_dsigma;
+      J_rows(rows, NC + 1) = 1;
+      J_rows(rows, NC + 2) = smp.tau;
+      J_rows(rows, NC + 3) = smp.s;
+      J_rows(rows, NC + 4) = resp.r;
+      J_rows(rows, NC + 5) = smp.tau * resp.r;
+      J_rows(rows, NC + 6) = smp.s * resp.r;
+      ++rows;
     }
     JtJ.setZero();
-    JtJ.template selfadjointView<Eigen::Lower>().rankUpdate(J_rows.transpose());
+    JtJ.template selfadjointView<Eigen::Lower>().rankUpdate(J_rows.topRows(rows).transpose());
     JtJ = JtJ.template selfadjointView<Eigen::Lower>();
-    Jtr.noalias() = J_rows.transpose() * residuals;
+    Jtr.noalias() = J_rows.topRows(rows).transpose() * residuals.head(rows);
+    auto moments = [](const std::array<double, 6>& w) {
+      Eigen::Matrix3d m;
+      m << w[0], w[1], w[2], w[1], w[3], w[4], w[2], w[4], w[5];
+      return m;
+    };
+    const Eigen::Matrix3d m1 = moments(w1);
+    JtJ.template block<3, 3>(NC + 1, NC + 1) += moments(w0);
+    JtJ.template block<3, 3>(NC + 4, NC + 1) += m1;
+    JtJ.template block<3, 3>(NC + 1, NC + 4) += m1;
+    JtJ.template block<3, 3>(NC + 4, NC + 4) += moments(w2);
+    Jtr.template segment<3>(NC + 1) += Eigen::Vector3d(g0[0], g0[1], g0[2]);
+    Jtr.template segment<3>(NC + 4) += Eigen::Vector3d(g1[0], g1[1], g1[2]);
   };
   // The responses at x are kept, so an accepted trial's are not computed again for its J.
   std::vector<Response> at_x(samples.size()), at_trial(samples.size());
@@ -470,6 +534,53 @@ struct EdgeFitResult {
   int iterations = 0;  // of every fit made for this edge
 };
 
+// Parameters for a fit of `degree` in `frame` that start where `fitted` (another frame's fit of the
+// same edge) ended: the curve is sampled at 17 points of the new frame's line, each moved along n
+// onto the fitted curve (Newton on g), and fitted by least squares with a polynomial of `degree`;
+// sigma is kept, and the shading planes, affine in (tau, s), are re-expressed exactly:
+//   tau_f = (d_f . (p - o_f)) / L_f - 1/2,  s_f = n_f . (p - o_f),  p = o + (tau + 1/2) L d + s n.
+// Empty where the fitted curve does not reach the new line (then the fit starts from scratch).
+std::optional<Eigen::VectorXd> start_from(const EdgeCurve& fitted, const EdgeFrame& frame, int degree) {
+  constexpr int kPoints = 17;
+  Eigen::MatrixXd A(kPoints, degree + 1);
+  Eigen::VectorXd rhs(kPoints);
+  for (int k = 0; k < kPoints; ++k) {
+    const double tau = -0.5 + static_cast<double>(k) / (kPoints - 1);
+    const Eigen::Vector2d on_line = frame.origin + (tau + 0.5) * frame.length * frame.d;
+    double s = 0;
+    for (int it = 0; it < 10; ++it) {
+      const Eigen::Vector2d p = on_line + s * frame.n;
+      const double slope = fitted.grad(p).dot(frame.n);
+      if (!(std::abs(slope) > 0.1)) return std::nullopt;
+      const double step = fitted.g(p) / slope;
+      s -= step;
+      if (std::abs(step) < 1e-9) break;
+    }
+    if (!(std::abs(s) < 3)) return std::nullopt;
+    double tj = 1;
+    for (int j = 0; j <= degree; ++j, tj *= tau) A(k, j) = tj;
+    rhs[k] = s;
+  }
+  Eigen::VectorXd x(degree + 8);
+  x.head(degree + 1) = A.colPivHouseholderQr().solve(rhs);
+  const EdgeFrame& f = fitted.frame;
+  // tau_f = t0 + tt tau + ts s, s_f = s0 + st tau + ss s.
+  const Eigen::Vector2d o = frame.origin - f.origin;
+  const double t0 = (f.d.dot(o + 0.5 * frame.length * frame.d)) / f.length - 0.5;
+  const double tt = frame.length * f.d.dot(frame.d) / f.length, ts = f.d.dot(frame.n) / f.length;
+  const double s0 = f.n.dot(o + 0.5 * frame.length * frame.d);
+  const double st = frame.length * f.n.dot(frame.d), ss = f.n.dot(frame.n);
+  x[degree + 1] = fitted.sigma;
+  for (int plane = 0; plane < 2; ++plane) {
+    const double c0 = fitted.shading[3 * plane], c_tau = fitted.shading[3 * plane + 1], c_s = fitted.shading[3 * plane + 2];
+    x[degree + 2 + 3 * plane] = c0 + c_tau * t0 + c_s * s0;
+    x[degree + 3 + 3 * plane] = c_tau * tt + c_s * st;
+    x[degree + 4 + 3 * plane] = c_tau * ts + c_s * ss;
+  }
+  if (!x.allFinite()) return std::nullopt;
+  return x;
+}
+
 // Fits one edge over t in [lo, hi] with band half-width w, and refuses a fit that fails the
 // contrast, blur and residual limits: a first fit on a band around the straight edge between the
 // given corners, then (rounds = 2) one on a band that follows the fitted curve. The neighbouring
@@ -479,9 +590,15 @@ struct EdgeFitResult {
 // options.tolerance_px; otherwise (a coarse pass that only places the next one's frames) every
 // round stops at 10x the tolerance. Either way the last round lowers the degree while its top
 // coefficient is not significant.
+// `start` (a whole-edge fit of the pass before, in its own frame): for a marker whose cells are at
+// least options.quick_start_min_cell_px wide, the last round's band follows that curve, re-expressed
+// in this frame (start_from), and its fit starts from its parameters: the rounds before are skipped.
+// Such a marker's cold first round runs its first iterations on every third sample. Smaller markers
+// always take every round from the straight band: their corners depend on where the fit starts
+// (docs/measurements/detect.md).
 EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFrame& frame, double lo, double hi,
                        const std::array<NeighbourEdge, 2>& neighbours, double cell_px, int rounds, double corner_error_px,
-                       bool final_pass, const InnerCode* code, const EdgeFitOptions& o) {
+                       bool final_pass, const InnerCode* code, const EdgeCurve* start, const EdgeFitOptions& o) {
   EdgeCurve curve;
   curve.frame = frame;
   const Footprint footprint = Footprint::across(frame.n);
@@ -490,7 +607,24 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFram
   const EdgeCurve* band_curve = nullptr;
   double sigma = o.initial_blur_px;
   int iterations = 0;
-  for (int round = 0; round < rounds; ++round) {
+  const bool quick = cell_px >= o.quick_start_min_cell_px;
+  int first_round = 0;
+  if (start && quick && rounds > 1) {
+    // The degree the first round would take (the same margins, from the initial blur).
+    const double delta = 3 * sigma + 0.75 + corner_error_px;
+    const double t0 = std::max(lo, delta / neighbours[0].sin_a);
+    const double t1 = std::min(hi, frame.length - delta / neighbours[1].sin_a);
+    if (t1 - t0 < o.min_fit_length_px) return {std::nullopt, "edge too short to fit clear of the corners"};
+    degree = std::clamp(static_cast<int>((t1 - t0) / o.min_px_per_degree), 1, o.degree);
+    if (auto warm = start_from(*start, frame, degree)) {
+      x = *warm;
+      curve.c = x.head(degree + 1);
+      sigma = curve.sigma = x[degree + 1];
+      band_curve = &curve;
+      first_round = rounds - 1;
+    }
+  }
+  for (int round = first_round; round < rounds; ++round) {
     const double delta = 3 * sigma + 0.75 + corner_error_px;
     // The transition is clear of the neighbours from delta / sin(alpha) on.
     const double t0 = std::max(lo, delta / neighbours[0].sin_a);
@@ -522,6 +656,18 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFram
       x[degree + 1] = o.initial_blur_px;
       x[degree + 2] = dark;
       x[degree + 5] = *hi_it - dark;
+    }
+    // From a cold start the first iterations only bring the curve near the edge: on a quick marker
+    // they run on every third sample to 0.1 px, and the fit below goes on from there with all.
+    if (quick && round == 0 && static_cast<int>(samples.size()) >= 3 * std::max(o.min_pixels_per_edge, degree + 8)) {
+      std::vector<Sample> thinned;
+      thinned.reserve(samples.size() / 3 + 1);
+      for (std::size_t i = 0; i < samples.size(); i += 3) thinned.push_back(samples[i]);
+      Eigen::VectorXd x_thinned = x;
+      const ModelFit near = fit_edge_model(thinned, footprint, degree, o.max_iterations, o.max_blur_px,
+                                           100 * o.tolerance_px, x_thinned);
+      iterations += near.iterations;
+      if (near.ok && x_thinned.allFinite()) x = x_thinned;
     }
     const bool last = final_pass && round == rounds - 1;
     // The rounds before the last only place the band (or the next pass): a coarse tolerance will do.
@@ -555,6 +701,7 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFram
     }
     curve.c = x.head(degree + 1);
     sigma = curve.sigma = x[degree + 1];
+    for (int k = 0; k < 6; ++k) curve.shading[static_cast<std::size_t>(k)] = x[degree + 2 + k];
     curve.contrast = x[degree + 5];
     band_curve = &curve;
   }
@@ -739,8 +886,12 @@ std::array<InnerCode, 4> inner_codes(const Eigen::Matrix3d& H, const cv::Mat& co
   return out;
 }
 
+// Whole-edge fits (span 1) of a pass, by edge, for the next pass's start.
+using EdgeCurves = std::array<std::optional<EdgeCurve>, 4>;
+
 EdgeFit refine_pass(const cv::Mat& grey, const Levels& levels, const std::array<Eigen::Vector2d, 4>& q, int cells,
-                    int rounds, double corner_error_px, bool final_pass, const cv::Mat& code, const EdgeFitOptions& o) {
+                    int rounds, double corner_error_px, bool final_pass, const cv::Mat& code, const EdgeFitOptions& o,
+                    const EdgeCurves* start = nullptr, EdgeCurves* fitted = nullptr) {
   EdgeFit result;
   result.corners = q;
   const Eigen::Vector2d centre = 0.25 * (q[0] + q[1] + q[2] + q[3]);
@@ -808,19 +959,23 @@ EdgeFit refine_pass(const cv::Mat& grey, const Levels& levels, const std::array<
     const std::array<NeighbourEdge, 2> nb{NeighbourEdge{q[e], inward(e, (e + 3) % 4), sin_angle[e]},
                                           NeighbourEdge{q[(e + 1) % 4], inward((e + 1) % 4, (e + 2) % 4),
                                                         sin_angle[(e + 1) % 4]}};
-    auto fit = [&](double lo, double hi) {
-      return take(fit_edge(grey, levels, frames[e], lo, hi, nb, cell_px[e], rounds, corner_error_px, final_pass,
-                           code.empty() ? nullptr : &codes[static_cast<std::size_t>(e)], o));
+    auto fit = [&](double lo, double hi, const EdgeCurve* from) {
+      const InnerCode* inner = code.empty() ? nullptr : &codes[static_cast<std::size_t>(e)];
+      const EdgeFitResult r = fit_edge(grey, levels, frames[e], lo, hi, nb, cell_px[e], rounds, corner_error_px, final_pass,
+                                 inner, from, o);
+      return take(r);
     };
     if (o.span >= 1) {
-      const auto curve = fit(0, L);
+      const auto& from = start ? (*start)[static_cast<std::size_t>(e)] : std::nullopt;
+      const auto curve = fit(0, L, from ? &*from : nullptr);
       ++n_fits;
       if (!curve) return result;
+      if (fitted) (*fitted)[static_cast<std::size_t>(e)] = curve;
       fits[e][1] = curve;
       fits[(e + 1) % 4][0] = curve;
     } else {
-      const auto first = fit(0, o.span * L);
-      const auto second = fit((1 - o.span) * L, L);
+      const auto first = fit(0, o.span * L, nullptr);
+      const auto second = fit((1 - o.span) * L, L, nullptr);
       n_fits += 2;
       if (!first || !second) return result;
       fits[e][1] = first;
@@ -858,8 +1013,10 @@ EdgeFit refine_marker_corners(const cv::Mat& grey, const std::array<Eigen::Vecto
   // tolerance), then the fine pass with frames, bands and neighbours drawn through the coarse
   // corners. If the coarse pass fails (a small marker leaves too little edge clear of its
   // uncertain corners), the fine pass starts from OpenCV's corners with their uncertainty.
-  const EdgeFit coarse = refine_pass(grey, levels, q, cells, 1, o.initial_corner_error_px, false, code, o);
-  EdgeFit fine = coarse.ok ? refine_pass(grey, levels, coarse.corners, cells, 2, 0, true, code, o)
+  EdgeCurves coarse_curves;
+  const EdgeFit coarse = refine_pass(grey, levels, q, cells, 1, o.initial_corner_error_px, false, code, o, nullptr,
+                                     &coarse_curves);
+  EdgeFit fine = coarse.ok ? refine_pass(grey, levels, coarse.corners, cells, 2, 0, true, code, o, &coarse_curves)
                            : refine_pass(grey, levels, q, cells, 2, o.initial_corner_error_px, true, code, o);
   fine.iterations += coarse.iterations;
   if (!fine.ok) return fine;

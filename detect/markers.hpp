@@ -106,6 +106,11 @@ struct EdgeFitOptions {
   double max_shift_cells = 0.5;   // a corner may move this far from OpenCV's (in cells) ...
   double min_max_shift_px = 2;    // ... or this far in pixels, whichever is larger
   int min_pixels_per_edge = 12;
+  // Markers whose cells are at least this wide (px, across each edge) take the quick start: the
+  // fine pass starts from the coarse pass's curves and fits once on the band that follows them,
+  // and the cold fits' first iterations run on a third of the band (same corners to ~0.01 px on
+  // such markers). Smaller markers, whose corners depend on where the fit starts, never take it.
+  double quick_start_min_cell_px = 6;
   // The model blurs light, so intensities must be linear in light: grey value v is fitted as
   // 255 (v / 255)^gamma. 1 for linear images (synth's renders, raw data); about 2.2 for sRGB
   // JPEGs, whose midtones otherwise move a blurred edge towards the dark side by roughly 0.8 sigma.

@@ -177,6 +177,17 @@ INSTANTIATE_TEST_SUITE_P(
         // cell wide, with it (the default) the first pass widens them (markers.hpp), so their
         // corners move a little.
         OptionCase{"edge_ignore_code", markers({"--edge-ignore-code"}), 0, "", moves_corners},
+        // Without the quick start (1000 px: no marker has such cells) every edge takes both fine
+        // rounds from scratch: the same markers, their corners within ~0.05 px of the quick ones
+        // but not identical.
+        OptionCase{"edge_quick_min_cell_px", markers({"--edge-quick-min-cell-px", "1000"}), 0, "",
+                   [](const Outcome& r) {
+                     ASSERT_EQ(r.observations.size(), plain_markers().observations.size());
+                     const double shift = max_shift(r.observations, plain_markers().observations);
+                     EXPECT_GT(shift, 1e-4);
+                     EXPECT_LT(shift, 0.05);
+                   }},
+        bad("edge_quick_min_cell_px_nan", {"--edge-quick-min-cell-px", "nan"}, "--edge-quick-min-cell-px"),
         // Windows 13 and 23 px instead of OpenCV's 3, 13 and 23: on the test photo the same markers,
         // the edge fit started from other polygons (within its tolerance of the same corners).
         OptionCase{"threshold_window_min_px", markers({"--threshold-window-min-px", "13"}), 0, "",

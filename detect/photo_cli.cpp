@@ -59,6 +59,10 @@ void add_photo_options(CLI::App& app, PhotoCli& c) {
   app.add_option("--edge-gamma", e.gamma,
                  "Edge fit: grey v is fitted as 255 (v/255)^gamma; 1 = linear images (synth), ~2.2 = sRGB JPEGs")
       ->group(markers)->capture_default_str()->check(CLI::Range(0.2, 5.0));
+  app.add_option("--edge-quick-min-cell-px", e.quick_start_min_cell_px,
+                 "Edge fit: markers whose cells are at least this wide (px) start the fine pass from the coarse one "
+                 "(one round instead of two); 1000 = never")
+      ->group(markers)->capture_default_str()->check(CLI::Range(0.0, 1000.0));
   app.add_flag("--edge-ignore-code", [&e](std::int64_t) { e.model_code = false; },
                "Edge fit: take the inside of the border as black instead of modelling the decoded code cells there")
       ->group(markers);
