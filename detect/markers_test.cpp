@@ -106,6 +106,40 @@ INSTANTIATE_TEST_SUITE_P(Quads, EdgeFitOnRenderedQuads,
                                            EdgeCase{71, 1.5, 0.1, 3}, EdgeCase{45, 0.5, 0.08, 1},
                                            EdgeCase{-28, 1.0, 0.12, 2}));
 
+// The quick start (markers.hpp: cells of 6 px or more, here 10) takes the fine pass from the
+// coarse one's curves in one round; on these renders it must find the corners the full fit finds
+// (both within 0.02 px of the truth, within 0.005 px of each other). Its speed is measured by
+// tools/detect_marker_bench, not here.
+TEST(EdgeFit, QuickStartFindsTheCornersOfTheFullFit) {
+  for (const EdgeCase& c : {EdgeCase{0, 0, 0, 3}, EdgeCase{17, 0.4, 0.05, 3}, EdgeCase{33, 0.8, 0.1, 3},
+                            EdgeCase{-28, 1.0, 0.12, 2}, EdgeCase{64, 1.5, 0.1, 3}}) {
+    std::mt19937 rng(static_cast<unsigned>(static_cast<int>(c.angle_deg * 10 + c.blur_px * 100 + 3)));
+    std::uniform_real_distribution<double> u(-1, 1);
+    const double a = c.angle_deg * M_PI / 180, side = 60;
+    const Eigen::Vector2d centre(100.3, 95.7);
+    std::array<Eigen::Vector2d, 4> truth, start;
+    const std::array<Eigen::Vector2d, 4> unit{Eigen::Vector2d(-1, -1), {1, -1}, {1, 1}, {-1, 1}};
+    for (int k = 0; k < 4; ++k) {
+      const Eigen::Vector2d p = unit[k] * side / 2 + Eigen::Vector2d(u(rng), u(rng)) * c.perspective * side;
+      truth[k] = centre + Eigen::Vector2d(std::cos(a) * p.x() - std::sin(a) * p.y(), std::sin(a) * p.x() + std::cos(a) * p.y());
+      start[k] = truth[k] + Eigen::Vector2d(u(rng), u(rng)) * 0.8;
+    }
+    const cv::Mat image = render_quad(truth, cv::Size(200, 190), c.blur_px);
+    EdgeFitOptions quick, full;
+    quick.degree = full.degree = c.degree;
+    full.quick_start_min_cell_px = 1000;
+    const EdgeFit q = refine_marker_corners(image, start, 6, quick);
+    const EdgeFit f = refine_marker_corners(image, start, 6, full);
+    ASSERT_TRUE(q.ok) << q.failure;
+    ASSERT_TRUE(f.ok) << f.failure;
+    for (int k = 0; k < 4; ++k) {
+      EXPECT_LT((q.corners[k] - truth[k]).norm(), 0.02) << ::testing::PrintToString(c) << ", corner " << k;
+      EXPECT_LT((f.corners[k] - truth[k]).norm(), 0.02) << ::testing::PrintToString(c) << ", corner " << k;
+      EXPECT_LT((q.corners[k] - f.corners[k]).norm(), 0.005) << ::testing::PrintToString(c) << ", corner " << k;
+    }
+  }
+}
+
 // Unblurred renders: the model's sigma runs to its lower bound (0.05 px), where a step that would
 // take it below holds it on the bound and solves the other parameters (an active bound). The
 // corners must stay exact there. (The iterations are printed, not bounded: GCC's build took 31-35
