@@ -659,6 +659,8 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFram
     }
     // From a cold start the first iterations only bring the curve near the edge: on a quick marker
     // they run on every third sample to 0.1 px, and the fit below goes on from there with all.
+    const Eigen::VectorXd cold = x;
+    bool warmed = false;
     if (quick && round == 0 && static_cast<int>(samples.size()) >= 3 * std::max(o.min_pixels_per_edge, degree + 8)) {
       std::vector<Sample> thinned;
       thinned.reserve(samples.size() / 3 + 1);
@@ -667,13 +669,23 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFram
       const ModelFit near = fit_edge_model(thinned, footprint, degree, o.max_iterations, o.max_blur_px,
                                            100 * o.tolerance_px, x_thinned);
       iterations += near.iterations;
-      if (near.ok && x_thinned.allFinite()) x = x_thinned;
+      if (near.ok && x_thinned.allFinite()) {
+        x = x_thinned;
+        warmed = true;
+      }
     }
     const bool last = final_pass && round == rounds - 1;
     // The rounds before the last only place the band (or the next pass): a coarse tolerance will do.
     const double tolerance = last ? o.tolerance_px : 10 * o.tolerance_px;
-    const ModelFit fitted = fit_edge_model(samples, footprint, degree, o.max_iterations, o.max_blur_px, tolerance, x);
+    ModelFit fitted = fit_edge_model(samples, footprint, degree, o.max_iterations, o.max_blur_px, tolerance, x);
     iterations += fitted.iterations;
+    if ((!fitted.ok || !x.allFinite()) && warmed) {
+      // No step improved on the warmed-up start (a perfectly sharp render's cost has a kink
+      // there): the fit from the cold start decides, as without the warm-up.
+      x = cold;
+      fitted = fit_edge_model(samples, footprint, degree, o.max_iterations, o.max_blur_px, tolerance, x);
+      iterations += fitted.iterations;
+    }
     if (!fitted.ok || !x.allFinite()) return {std::nullopt, "edge fit did not converge"};
     // The fit's RMS residual (its cost is the sum of squares at x).
     curve.rms = std::sqrt(fitted.cost / static_cast<double>(samples.size()));
@@ -961,8 +973,13 @@ EdgeFit refine_pass(const cv::Mat& grey, const Levels& levels, const std::array<
                                                         sin_angle[(e + 1) % 4]}};
     auto fit = [&](double lo, double hi, const EdgeCurve* from) {
       const InnerCode* inner = code.empty() ? nullptr : &codes[static_cast<std::size_t>(e)];
-      const EdgeFitResult r = fit_edge(grey, levels, frames[e], lo, hi, nb, cell_px[e], rounds, corner_error_px, final_pass,
+      EdgeFitResult r = fit_edge(grey, levels, frames[e], lo, hi, nb, cell_px[e], rounds, corner_error_px, final_pass,
                                  inner, from, o);
+      // A quick start that fails (e.g. a perfectly sharp render, whose start sits on a kink of
+      // the cost that no step improves) is not the edge's verdict: the full fit decides.
+      if (!r.curve && from) {
+        r = fit_edge(grey, levels, frames[e], lo, hi, nb, cell_px[e], rounds, corner_error_px, final_pass, inner, nullptr, o);
+      }
       return take(r);
     };
     if (o.span >= 1) {
