@@ -607,15 +607,28 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFram
   const EdgeCurve* band_curve = nullptr;
   double sigma = o.initial_blur_px;
   int iterations = 0;
+  // The margin delta kept from the neighbours for a blur sigma; the transition is clear of them
+  // from delta / sin(alpha) on, so the stretch fitted is [t0, t1].
+  struct Stretch {
+    double delta, t0, t1;
+  };
+  auto stretch = [&](double blur) {
+    const double delta = 3 * blur + 0.75 + corner_error_px;
+    return Stretch{delta, std::max(lo, delta / neighbours[0].sin_a),
+                   std::min(hi, frame.length - delta / neighbours[1].sin_a)};
+  };
+  // The first round's degree: at most L / min_px_per_degree for its stretch of L px.
+  auto first_degree = [&](const Stretch& st) {
+    return std::clamp(static_cast<int>((st.t1 - st.t0) / o.min_px_per_degree), 1, o.degree);
+  };
+  constexpr const char* kTooShort = "edge too short to fit clear of the corners";
   const bool quick = cell_px >= o.quick_start_min_cell_px;
   int first_round = 0;
   if (start && quick && rounds > 1) {
-    // The degree the first round would take (the same margins, from the initial blur).
-    const double delta = 3 * sigma + 0.75 + corner_error_px;
-    const double t0 = std::max(lo, delta / neighbours[0].sin_a);
-    const double t1 = std::min(hi, frame.length - delta / neighbours[1].sin_a);
-    if (t1 - t0 < o.min_fit_length_px) return {std::nullopt, "edge too short to fit clear of the corners"};
-    degree = std::clamp(static_cast<int>((t1 - t0) / o.min_px_per_degree), 1, o.degree);
+    // The degree the first round would take (its margins, from the initial blur).
+    const Stretch st = stretch(sigma);
+    if (st.t1 - st.t0 < o.min_fit_length_px) return {std::nullopt, kTooShort};
+    degree = first_degree(st);
     if (auto warm = start_from(*start, frame, degree)) {
       x = *warm;
       curve.c = x.head(degree + 1);
@@ -625,13 +638,11 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFram
     }
   }
   for (int round = first_round; round < rounds; ++round) {
-    const double delta = 3 * sigma + 0.75 + corner_error_px;
-    // The transition is clear of the neighbours from delta / sin(alpha) on.
-    const double t0 = std::max(lo, delta / neighbours[0].sin_a);
-    const double t1 = std::min(hi, frame.length - delta / neighbours[1].sin_a);
-    if (t1 - t0 < o.min_fit_length_px) return {std::nullopt, "edge too short to fit clear of the corners"};
+    const Stretch st = stretch(sigma);
+    const double delta = st.delta;
+    if (st.t1 - st.t0 < o.min_fit_length_px) return {std::nullopt, kTooShort};
     if (round == 0) {
-      degree = std::clamp(static_cast<int>((t1 - t0) / o.min_px_per_degree), 1, o.degree);
+      degree = first_degree(st);
       x = Eigen::VectorXd::Zero(degree + 8);
     }
     const double w = band_half_width(cell_px, sigma, code != nullptr, o);
@@ -983,8 +994,8 @@ EdgeFit refine_pass(const cv::Mat& grey, const Levels& levels, const std::array<
       return take(r);
     };
     if (o.span >= 1) {
-      const auto& from = start ? (*start)[static_cast<std::size_t>(e)] : std::nullopt;
-      const auto curve = fit(0, L, from ? &*from : nullptr);
+      const std::optional<EdgeCurve>* from = start ? &(*start)[static_cast<std::size_t>(e)] : nullptr;
+      const auto curve = fit(0, L, from && *from ? &**from : nullptr);
       ++n_fits;
       if (!curve) return result;
       if (fitted) (*fitted)[static_cast<std::size_t>(e)] = curve;

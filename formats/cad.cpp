@@ -363,7 +363,7 @@ std::string lower(std::string s) {
   return s;
 }
 
-// The first KiB of an existing, non-empty, readable file.
+// The first `bytes` (a KiB unless told) of an existing, non-empty, readable file.
 std::string file_head(const std::string& path, std::size_t bytes = 1024) {
   std::error_code ec;
   const auto status = std::filesystem::status(path, ec);

@@ -7,9 +7,9 @@
 #include <cstdlib>
 #include <mutex>
 #include <thread>
+#include <vector>
 
 #include <pthread.h>
-#include <vector>
 
 #include "formats/text.hpp"
 
