@@ -124,6 +124,11 @@ void add_options(CLI::App& app, Cli& c) {
                "No parameter correction: keep the projection onto the plane as parameters")->group(slv);
   app.add_option("--max-rounds", f.max_rounds, "Fits at most (each followed by parameter correction and reweighting)")
       ->capture_default_str()->group(slv)->check(tool::finite_in(1, 1000));
+  app.add_option("--max-smoothing-factor", c.options.max_smoothing_factor,
+                 "When parameter correction stops before a round that would curl the surface, fit again with the "
+                 "smoothing raised by steps of sqrt(10) up to this factor while it still stops, and keep the fit "
+                 "closest to the data; 1 = keep the smoothing given")
+      ->capture_default_str()->group(slv)->check(tool::finite_in(1, 1e6));
   app.add_option("--min-gain", f.min_rms_gain, "Stop when a round lowers the RMS by less than this fraction")
       ->capture_default_str()->group(slv)->check(tool::finite_in(0, 0.999));
   app.add_option("--robust", c.robust,

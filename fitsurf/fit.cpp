@@ -850,7 +850,8 @@ void check_no_fold(const FitResult& fit, const std::vector<Eigen::Vector2d>& bou
   what += ", u " + fixed(e.uv.x(), 3) + ", v " + fixed(e.uv.y(), 3) + "; the data there ";
   what += e.data_deg >= 0 ? "are at most " + fixed(e.data_deg, 1) + " degrees steep)" : "are too sparse for a slope)";
   std::string advice;
-  if (e.data_deg >= o.steepest_deg - o.data_margin_deg) {
+  const bool data_too_steep = e.data_deg >= o.steepest_deg - o.data_margin_deg;
+  if (data_too_steep) {
     advice = "the data are not a height field over that plane (overhangs, vertical walls): select the part's top "
              "(--keep-above, --keep-box)";
   } else {
@@ -864,6 +865,7 @@ void check_no_fold(const FitResult& fit, const std::vector<Eigen::Vector2d>& bou
     advice += "; --plane auto chooses the plane that holds the data best";
   }
   advice += "; --max-slope-deg " + sig(o.max_slope_deg, 3) + " is the limit where the data are not steep";
+  if (!data_too_steep) throw CurlError(what + ": " + advice);
   throw GeometryError(what + ": " + advice);
 }
 

@@ -39,6 +39,7 @@
 #include "fitsurf/frame.hpp"
 #include "fitsurf/project.hpp"
 #include "fitsurf/slope.hpp"
+#include "formats/error.hpp"
 #include "formats/surface.hpp"
 
 namespace photomill::fitsurf {
@@ -194,8 +195,16 @@ double median(std::vector<double> v);
 // At least (p + 1)(q + 1) points for degrees p x q, else GeometryError saying so.
 void require_points(std::size_t n, const FitOptions& options);
 
+// check_no_fold's refusal where the surface is steeper than the data under it allow (it curls
+// beyond them between or at the edge of the points), which a stiffer surface may not do; where the
+// data themselves are too steep for a height field it throws a plain GeometryError.
+class CurlError : public GeometryError {
+ public:
+  using GeometryError::GeometryError;
+};
+
 // The surface folds over the parameter plane inside `boundary_uv` (or the whole domain when it
-// is empty)? Throws GeometryError naming the place. Part of fit_point_cloud, after the outline.
+// is empty)? Throws CurlError or GeometryError naming the place. Part of fit_point_cloud, after the outline.
 void check_no_fold(const FitResult& fit, const std::vector<Eigen::Vector2d>& boundary_uv, const FoldOptions& options);
 
 // Knot vector "averaged" over the parameters (NURBS Book eq. 9.69 with d = (m+1)/(n-p+1)),

@@ -284,41 +284,118 @@ Result fit_point_cloud(const PointCloud& cloud, const Options& options, const st
       fit_options.poles_u = r.tolerance->poles_u;
       fit_options.poles_v = r.tolerance->poles_v;
     }
-    r.fit = fit_surface(points, fit_options, weights);
   }
-  r.fit.pca_slope_deg = pca_slope_deg;
-  r.fit.xy_slope_deg = xy_slope_deg;
-  step.emplace("the data's outline and the fold check");
-  auto outline_and_check = [&] {
-    r.fit.surface.boundary_uv = data_outline(r.fit.uv, r.fit.weight, r.fit.box.length_u_mm(),
-                                             r.fit.box.length_v_mm(), options.outline);
-    r.fit.local_surface.boundary_uv = r.fit.surface.boundary_uv;
-    check_no_fold(r.fit, r.fit.surface.boundary_uv, fit_options.fold);
-  };
   // fit_surface stops the parameter correction before a round too steep at the foot points'
   // cells (FitOptions::stop_before_fold); the outline can hold places between them that were
   // not looked at. Then the fit is repeated with one round fewer, down to the first.
-  for (;;) {
-    try {
-      outline_and_check();
-      break;
-    } catch (const GeometryError& e) {
-      const int rounds = static_cast<int>(r.fit.round_rms_mm.size());
-      if (r.prefit || !fit_options.stop_before_fold || !fit_options.parameter_correction || rounds <= 1) throw;
-      log::debug(std::string("fitted again with ") + std::to_string(rounds - 1) + " rounds: " + e.what());
-      fit_options.max_rounds = rounds - 1;
-      r.fit = fit_surface(points, fit_options, weights);
-      // Stopped: by this fit's own check, or by the outline's check of the longer one.
-      if (r.fit.stopped_at_round == 0) r.fit.stopped_at_round = static_cast<int>(r.fit.round_rms_mm.size());
-      r.fit.pca_slope_deg = pca_slope_deg;
-      r.fit.xy_slope_deg = xy_slope_deg;
+  auto fit_and_check = [&](FitOptions fo) {
+    FitResult f = r.prefit ? std::move(r.fit) : fit_surface(points, fo, weights);
+    for (;;) {
+      try {
+        f.surface.boundary_uv = data_outline(f.uv, f.weight, f.box.length_u_mm(), f.box.length_v_mm(), options.outline);
+        f.local_surface.boundary_uv = f.surface.boundary_uv;
+        check_no_fold(f, f.surface.boundary_uv, fo.fold);
+        break;
+      } catch (const GeometryError& e) {
+        const int rounds = static_cast<int>(f.round_rms_mm.size());
+        if (r.prefit || !fo.stop_before_fold || !fo.parameter_correction || rounds <= 1) throw;
+        log::debug(std::string("fitted again with ") + std::to_string(rounds - 1) + " rounds: " + e.what());
+        fo.max_rounds = rounds - 1;
+        f = fit_surface(points, fo, weights);
+        // Stopped: by this fit's own check, or by the outline's check of the longer one.
+        if (f.stopped_at_round == 0) f.stopped_at_round = static_cast<int>(f.round_rms_mm.size());
+      }
+    }
+    f.pca_slope_deg = pca_slope_deg;
+    f.xy_slope_deg = xy_slope_deg;
+    return f;
+  };
+  // The smoothing ladder (Options::max_smoothing_factor): not with a tolerance, whose net was
+  // chosen and cross-validated at the smoothing given, nor where the smoothing is not the user's
+  // to raise (none, or chosen for --noise-mm), nor for the kernel prefit.
+  const bool ladder_allowed = !r.prefit && !options.tolerance && fit_options.noise_mm == 0 &&
+                              fit_options.smoothing_mm4 > 0 && options.max_smoothing_factor > 1;
+  std::optional<CurlError> curled;  // the given smoothing's fit curled already in its first round
+  try {
+    r.fit = fit_and_check(fit_options);
+  } catch (const CurlError& e) {
+    if (!ladder_allowed) throw;
+    curled = e;
+  }
+  if (ladder_allowed && (curled || r.fit.stopped_at_round > 0)) {
+    // Each fit is scored by the RMS of its orthogonal distances over the points the first fit
+    // that worked kept (weight > 0), so that all are judged on the same points and none scores
+    // better by rejecting more of them.
+    std::vector<double> reference_weight;
+    auto score = [&](const FitResult& f) {
+      if (reference_weight.empty()) reference_weight = f.weight;
+      double sum = 0;
+      std::size_t n = 0;
+      for (std::size_t k = 0; k < f.residual_mm.size(); ++k) {
+        if (reference_weight[k] > 0) sum += f.residual_mm[k] * f.residual_mm[k], ++n;
+      }
+      return n ? std::sqrt(sum / static_cast<double>(n)) : 0.0;
+    };
+    double best = std::numeric_limits<double>::infinity();
+    if (curled) {
+      r.smoothing_ladder.push_back({fit_options.smoothing_mm4, 0, true, 0, curled->what()});
+    } else {
+      best = score(r.fit);
+      r.smoothing_ladder.push_back({r.fit.smoothing_mm4, static_cast<int>(r.fit.round_rms_mm.size()), true, best, ""});
+    }
+    bool found = !curled;
+    for (int k = 1; std::pow(10.0, 0.5 * k) <= options.max_smoothing_factor * (1 + 1e-9); ++k) {
+      const double factor = std::pow(10.0, 0.5 * k);  // sqrt(10)^k: exactly 10 and 100 at k = 2 and 4
+      FitOptions fo = fit_options;
+      fo.smoothing_mm4 = fit_options.smoothing_mm4 * factor;
+      step.emplace("the surface curled: fitting again with smoothing " + sig(fo.smoothing_mm4, 4));
+      SmoothingTrial trial{fo.smoothing_mm4, 0, false, 0, ""};
+      try {
+        FitResult f = fit_and_check(fo);
+        trial.rounds = static_cast<int>(f.round_rms_mm.size());
+        trial.stopped = f.stopped_at_round > 0;
+        trial.score_rms_mm = score(f);
+        if (trial.score_rms_mm < best) {
+          best = trial.score_rms_mm;
+          r.fit = std::move(f);
+          found = true;
+        }
+      } catch (const GeometryError& e) {
+        trial.refused = e.what();
+        log::debug("smoothing " + sig(fo.smoothing_mm4, 4) + " refused: " + e.what());
+      }
+      r.smoothing_ladder.push_back(trial);
+      // A fit whose correction ran its course: a stiffer surface would only be farther from the data.
+      if (trial.refused.empty() && !trial.stopped) break;
+    }
+    const std::string given = sig(fit_options.smoothing_mm4, 4);
+    if (!found) {
+      throw CurlError(std::string(curled->what()) + " (the smoothing raised up to " +
+                      sig(fit_options.smoothing_mm4 * options.max_smoothing_factor, 4) + " did not keep it flat either)");
+    }
+    std::string tried;
+    for (std::size_t k = 1; k < r.smoothing_ladder.size(); ++k) {
+      const SmoothingTrial& t = r.smoothing_ladder[k];
+      tried += (k > 1 ? ", " : "") + sig(t.smoothing, 4) +
+               (t.refused.empty() ? " (" + sig(t.score_rms_mm, 4) + " mm" + (t.stopped ? ", stopped" : "") + ")" : " (curled)");
+    }
+    const std::string kept = "; kept smoothing " + sig(r.fit.smoothing_mm4, 4) + " (--max-smoothing-factor 1: keep the smoothing given)";
+    if (curled) {
+      // The smoothing asked for gave no surface: the one delivered is stiffer than asked, say so.
+      log::warn("at smoothing " + given + " the surface curled in its first round (" + curled->what() +
+                "); fitted again with " + tried + kept);
+    } else {
+      log::info("parameter correction stopped before a curl at smoothing " + given + " (RMS " +
+                sig(r.smoothing_ladder.front().score_rms_mm, 4) + " mm); fitted again with " + tried + kept);
     }
   }
+  const bool ladder = !r.smoothing_ladder.empty();
   if (r.fit.stopped_at_round > 0) {
     log::warn("parameter correction stopped after round " + std::to_string(r.fit.stopped_at_round) +
               ": the next round's surface was steeper than the data allow (it curls over the plane where the points "
-              "slide along a steep flank); fitted RMS " + sig(r.fit.round_rms_mm.back(), 4) +
-              " mm. A larger --smoothing lets the correction go further");
+              "slide along a steep flank); fitted RMS " + sig(r.fit.round_rms_mm.back(), 4) + " mm" +
+              (ladder ? " at smoothing " + sig(r.fit.smoothing_mm4, 4) + ", the closest of the smoothing ladder"
+                      : ". A larger --smoothing lets the correction go further"));
   }
   step.reset();
   // A surface holds mm or the arbitrary unit of a reconstruction without a datum: a cloud in any

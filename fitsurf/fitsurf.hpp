@@ -64,6 +64,23 @@ struct Options {
   // points' a-priori variances (Gauss-Markov), so a two-view point counts less than one seen by 8.
   bool weight_by_sigma = false;
   double sigma_floor_mm = 0.005;
+  // When parameter correction stops before a round that would curl the surface over
+  // (FitOptions::stop_before_fold), the fit is repeated with the smoothing raised by steps of
+  // sqrt(10), up to this factor, while the correction still stops; the fit closest to the data
+  // is kept (smoothing_ladder). On a range scan's steep flanks a stiffer surface lets the points
+  // slide to their feet without curling it: the bunny's body patch at 12 poles, 0.493 mm RMS
+  // stopped at round 7 with 0.01 mm^4, 0.353 mm at 1 (docs/measurements/fitsurf.md). 1 = never;
+  // not with a tolerance (its net is chosen at the smoothing given), --noise-mm or the kernel prefit.
+  double max_smoothing_factor = 100;
+};
+
+// One fit of the smoothing ladder (Options::max_smoothing_factor).
+struct SmoothingTrial {
+  double smoothing = 0;      // lambda, in the fit's unit (mm^4, or mm^6 for order 3)
+  int rounds = 0;            // rounds kept
+  bool stopped = false;      // the correction stopped before a curl
+  double score_rms_mm = 0;   // RMS distance over the points the first fit kept (the comparison)
+  std::string refused;       // non-empty: the fit failed with this error
 };
 
 // Statistics of the signed orthogonal residuals d (mm) of the fitted points.
@@ -90,6 +107,9 @@ struct Result {
   // fit.surface carries the outline as boundary_uv, and the cloud's unit: "mm", else "arbitrary"
   // (BSplineSurface::units), so that no tool path takes it as mm.
   FitResult fit;
+  // The fits tried when the correction stopped before a curl, the requested smoothing's first;
+  // empty when it did not stop (or the ladder was off).
+  std::vector<SmoothingTrial> smoothing_ladder;
   ResidualStats stats;
   double seconds = 0;       // wall time of fit_point_cloud
 };

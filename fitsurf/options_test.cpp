@@ -242,7 +242,7 @@ INSTANTIATE_TEST_SUITE_P(
                      EXPECT_EQ(json_number(none.report, "boundary_vertices", "surface"), 0);
                    }},
         bad("outline_bad", {"--outline", "round"}, "--outline"),
-        OptionCase{"max_slope_deg", on({"--max-slope-deg", "5"}), 1, "slope", nullptr},
+        OptionCase{"max_slope_deg", on({"--max-slope-deg", "5", "--max-smoothing-factor", "1"}), 1, "slope", nullptr},
         bad("max_slope_deg_above_90", {"--max-slope-deg", "91"}, "--max-slope-deg"),
         OptionCase{"outline_cell_mm", on({"--outline", "concave", "--outline-cell-mm", "20"}, dome_l_shaped), 0, "",
                    [](const Outcome& r) {
@@ -253,6 +253,18 @@ INSTANTIATE_TEST_SUITE_P(
                                json_number(fine.report, "boundary_vertices", "surface"));
                    }},
         // Solving
+        // The dome at 5 degrees curls at the smoothing given (max_slope_deg above); the ladder
+        // finds a stiffer surface that keeps within the slopes.
+        OptionCase{"max_smoothing_factor", on({"--max-slope-deg", "5"}), 0, "curled in its first round",
+                   [](const Outcome& r) {
+                     EXPECT_GT(json_number(r.report, "smoothing_mm4", "fit"), 0.011);
+                     EXPECT_NE(r.report.find("\"smoothing_ladder\":[{\"smoothing\":0.01,"), std::string::npos) << r.report;
+                     const Outcome off = fit({"--max-slope-deg", "5", "--max-smoothing-factor", "1"});
+                     EXPECT_EQ(off.r.exit_code, 1) << off.r.err;
+                     EXPECT_EQ(off.r.err.find("curled in its first round"), std::string::npos) << off.r.err;
+                   }},
+        bad("max_smoothing_factor_below_1", {"--max-smoothing-factor", "0.5"}, "--max-smoothing-factor"),
+        bad("max_smoothing_factor_nan", {"--max-smoothing-factor", "nan"}, "--max-smoothing-factor"),
         OptionCase{"cg_tolerance", on({"--solver", "cg", "--cg-tolerance", "1e-14"}), 0, "",
                    [](const Outcome& r) {
                      EXPECT_EQ(json_raw(r.report, "solver", "fit"), "\"cg\"");

@@ -133,6 +133,23 @@ void write_report(std::ostream& out, const Result& r, const Options& o, const st
   // lambda in mm^(2 m): the key names its unit ("smoothing_mm4" for the thin plate, m = 2).
   j.field(o.fit.smoothing_order == 3 ? "smoothing_mm6" : "smoothing_mm4", f.smoothing_mm4);
   j.field("smoothing_order", o.fit.smoothing_order);
+  // The smoothing ladder (Options::max_smoothing_factor): each fit tried, the given smoothing's first.
+  j.key("smoothing_ladder").begin_array();
+  for (const SmoothingTrial& t : r.smoothing_ladder) {
+    j.begin_object();
+    j.field("smoothing", t.smoothing);
+    j.field("rounds", t.rounds);
+    j.field("stopped_before_fold", t.stopped);
+    j.field("rms_mm", t.score_rms_mm);
+    j.key("refused");
+    if (t.refused.empty()) {
+      j.null();
+    } else {
+      j.value(t.refused);
+    }
+    j.end_object();
+  }
+  j.end_array();
   j.field("weight_by_sigma", o.weight_by_sigma);
   j.key("noise_mm");
   if (o.fit.noise_mm > 0) {
