@@ -290,6 +290,7 @@ Result fit_point_cloud(const PointCloud& cloud, const Options& options, const st
   // not looked at. Then the fit is repeated with one round fewer, down to the first.
   auto fit_and_check = [&](FitOptions fo) {
     FitResult f = r.prefit ? std::move(r.fit) : fit_surface(points, fo, weights);
+    step.emplace("the data's outline and the fold check");
     for (;;) {
       try {
         f.surface.boundary_uv = data_outline(f.uv, f.weight, f.box.length_u_mm(), f.box.length_v_mm(), options.outline);
