@@ -378,7 +378,7 @@ Result fit_point_cloud(const PointCloud& cloud, const Options& options, const st
     for (std::size_t k = 1; k < r.smoothing_ladder.size(); ++k) {
       const SmoothingTrial& t = r.smoothing_ladder[k];
       tried += (k > 1 ? ", " : "") + sig(t.smoothing, 4) +
-               (t.refused.empty() ? " (" + sig(t.score_rms_mm, 4) + " mm" + (t.stopped ? ", stopped" : "") + ")" : " (curled)");
+               (t.refused.empty() ? " (" + sig(t.score_rms_mm, 4) + " mm" + (t.stopped ? ", stopped" : "") + ")" : " (refused)");
     }
     const std::string kept = "; kept smoothing " + sig(r.fit.smoothing_mm4, 4) + " (--max-smoothing-factor 1: keep the smoothing given)";
     if (curled) {
