@@ -49,6 +49,12 @@ void add_options(CLI::App& app, Cli& c) {
       ->group(grow)->check(tool::finite_in(0, 5))->capture_default_str();
   app.add_option("--box-margin", o.box_margin, "Without --box: the sparse cloud's box grown by this share of its size on each side")
       ->group(grow)->check(tool::finite_in(0, 10))->capture_default_str();
+  app.add_option("--free-space-min-violations", o.free_space_min_violations,
+                 "Remove a point that lies this many times in front of a point a view saw behind it (0: no check)")
+      ->check(tool::non_negative_up_to(1000000))->capture_default_str();
+  app.add_option("--free-space-gap", o.free_space_gap_footprints,
+                 "... more than this many of its cell's widths in front of it")
+      ->check(tool::finite_in(0, 1000))->capture_default_str();
   app.add_option("--tile-cells", o.tile_cells, "Tiles of this many cells a side grow in parallel")
       ->group(grow)->check(tool::finite_in(4, 100000))->capture_default_str();
   const std::string lsm = "Multi-image least-squares matching";
@@ -72,6 +78,13 @@ void add_options(CLI::App& app, Cli& c) {
       ->group(lsm)->check(tool::positive_up_to(1))->capture_default_str();
   app.add_option("--max-shift-px", p.max_shift_px, "Refused when the centre moved farther than this in a view from its start")
       ->group(lsm)->check(tool::positive_up_to(100))->capture_default_str();
+  app.add_option("--max-bend-deg", p.max_bend_deg, "Refused when the fitted surface's normal turns by more than this across the window")
+      ->group(lsm)->check(tool::finite_in(0, 180, true))->capture_default_str();
+  app.add_option("--bend-check-half-window-px", p.bend_check_half_window_px,
+                 "A bent patch's point is kept if a window of this half-width bends at most --bend-shrink-ratio as much (0: none)")
+      ->group(lsm)->check(tool::non_negative_up_to(100))->capture_default_str();
+  app.add_option("--bend-shrink-ratio", p.bend_shrink_ratio, "... of the bent patch's bend")
+      ->group(lsm)->check(tool::finite_in(0, 1))->capture_default_str();
   app.add_option("--max-obliquity-deg", p.max_obliquity_deg, "Refused when the reference sees the patch more obliquely than this")
       ->group(lsm)->check(tool::finite_in(1, 90))->capture_default_str();
 }
@@ -167,6 +180,7 @@ void report(const DensifyResult& result, const DensifyInputs& in) {
       why += std::string(why.empty() ? "" : ", ") + to_string(static_cast<PatchFailure>(k)) + " " + std::to_string(st.failures[k]);
     }
     if (st.outside_box) why += std::string(why.empty() ? "" : ", ") + "outside the box " + std::to_string(st.outside_box);
+    if (st.free_space) why += std::string(why.empty() ? "" : ", ") + "in front of a surface seen behind " + std::to_string(st.free_space);
     log::debug(fs::path(in.poses[i].image).filename().string() + ": neighbours " + (nb.empty() ? "none" : nb) + "; " +
                std::to_string(st.seeds) + " seeds, " + std::to_string(st.measured) + " patches measured, " +
                std::to_string(st.accepted) + " accepted, " + std::to_string(st.occupied) +
@@ -181,7 +195,8 @@ void report(const DensifyResult& result, const DensifyInputs& in) {
     return x[x.size() / 2];
   };
   log::info(std::to_string(cloud.points_mm.size()) + " points; median sigma along the ray " + format_double(median(s)) + " " +
-            cloud.units + ", median views " + format_double(median(v)));
+            cloud.units + ", median views " + format_double(median(v)) + "; " + std::to_string(result.free_space_removed) +
+            " removed by the free-space check");
 }
 
 }  // namespace photomill::densify

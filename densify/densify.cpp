@@ -32,9 +32,7 @@ struct Candidate {
 };
 
 // One accepted point, world frame.
-struct DensePoint {
-  Eigen::Vector3d xyz;
-  Eigen::Vector3d normal;
+struct DensePoint : SurfaceSample {
   double sigma;
   int views;
   int ref;
@@ -83,6 +81,87 @@ double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
 }
 
 }  // namespace
+
+std::vector<int> free_space_violations(const std::vector<SurfaceSample>& pts, const std::vector<PatchView>& views,
+                                       const geometry::CameraModel& cam, double gap_footprints, int threads) {
+  threads = geometry::thread_count(threads);
+  std::vector<int> count(pts.size(), 0);
+  std::vector<Eigen::Vector3d> centres;
+  for (const PatchView& v : views) centres.push_back(-v.rotation.transpose() * v.translation_mm);
+  const double fx = cam.params[geometry::kFx];
+  const geometry::ModelShape shape = geometry::shape_of(cam);
+  constexpr double bucket_px = 4;
+  const int bw = static_cast<int>(std::ceil(cam.width_px / bucket_px)) + 1;
+  const int bh = static_cast<int>(std::ceil(cam.height_px / bucket_px)) + 1;
+  struct Proj {
+    double u = 0, v = 0, z = 0;
+    bool ok = false;
+  };
+  std::vector<Proj> proj(pts.size());
+  for (std::size_t j = 0; j < views.size(); ++j) {
+    const Eigen::Matrix3d& R = views[j].rotation;
+    const Eigen::Vector3d& t = views[j].translation_mm;
+    const Eigen::Vector3d& C = centres[j];
+    geometry::parallel_for(pts.size(), threads, [&](std::size_t i) {
+      Proj& q = proj[i];
+      const Eigen::Vector3d Xc = R * pts[i].xyz + t;
+      q.ok = Xc.z() > 0;
+      if (!q.ok) return;
+      geometry::distort_to_pixel(shape, cam.params.data(), Xc.x() / Xc.z(), Xc.y() / Xc.z(), &q.u, &q.v);
+      q.z = Xc.z();
+      q.ok = q.u >= 0 && q.v >= 0 && q.u < cam.width_px && q.v < cam.height_px;
+    });
+    // The points view j matched, by bucket (counting sort).
+    std::vector<int> start(static_cast<std::size_t>(bw) * bh + 1, 0);
+    auto bucket = [&](const Proj& q) {
+      return static_cast<int>(q.v / bucket_px) * bw + static_cast<int>(q.u / bucket_px);
+    };
+    std::vector<std::size_t> matched;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      if (!proj[i].ok) continue;
+      if (std::find(pts[i].seen_by.begin(), pts[i].seen_by.end(), static_cast<int>(j)) == pts[i].seen_by.end()) continue;
+      matched.push_back(i);
+      ++start[static_cast<std::size_t>(bucket(proj[i])) + 1];
+    }
+    for (std::size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
+    std::vector<std::size_t> order(matched.size());
+    {
+      std::vector<int> fill(start.begin(), start.end() - 1);
+      for (std::size_t i : matched) order[static_cast<std::size_t>(fill[static_cast<std::size_t>(bucket(proj[i]))]++)] = i;
+    }
+    geometry::parallel_for(pts.size(), threads, [&](std::size_t i) {
+      const Proj& p = proj[i];
+      if (!p.ok) return;
+      const SurfaceSample& P = pts[i];
+      const double reach_px = P.footprint * fx / p.z + 1;
+      const int bx0 = std::max(0, static_cast<int>((p.u - reach_px) / bucket_px));
+      const int bx1 = std::min(bw - 1, static_cast<int>((p.u + reach_px) / bucket_px));
+      const int by0 = std::max(0, static_cast<int>((p.v - reach_px) / bucket_px));
+      const int by1 = std::min(bh - 1, static_cast<int>((p.v + reach_px) / bucket_px));
+      const double np = P.normal.dot(P.xyz - C);
+      const double gap = gap_footprints * P.footprint;
+      for (int by = by0; by <= by1; ++by) {
+        for (int bx = bx0; bx <= bx1; ++bx) {
+          const std::size_t b = static_cast<std::size_t>(by) * bw + bx;
+          for (int k = start[b]; k < start[b + 1]; ++k) {
+            const std::size_t qi = order[static_cast<std::size_t>(k)];
+            if (qi == i || !(proj[qi].z > p.z)) continue;
+            const Eigen::Vector3d d = pts[qi].xyz - C;
+            const double nd = P.normal.dot(d);
+            if (!(std::abs(nd) > 1e-12)) continue;
+            const double s = np / nd;
+            if (!(s > 0 && s < 1)) continue;
+            if ((1 - s) * d.norm() <= gap) continue;
+            if ((C + s * d - P.xyz).squaredNorm() > P.footprint * P.footprint) continue;
+            ++count[i];
+          }
+        }
+      }
+    });
+  }
+  return count;
+}
+
 
 DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Progress& progress) {
   const std::size_t n_views = in.poses.size();
@@ -262,6 +341,12 @@ DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Pr
         const PatchFailure why = matcher.measure(views, static_cast<int>(ref), px, cand.plane, st.neighbours, &r);
         if (why != PatchFailure::None) {
           ++out->stats.failures[static_cast<std::size_t>(why)];
+          // A window across a crease: the faces on either side (its quadrants' planes) are
+          // proposed to the neighbours, after every plane of an accepted patch, so that the
+          // growth carries on past the crease (from a wall's top onto its face).
+          if (why == PatchFailure::Bent) {
+            for (const Eigen::Vector3d& plane : r.bend_planes) propose(cand.cell, plane, r.correlation - 1);
+          }
           continue;
         }
         const Eigen::Vector3d X = R.transpose() * (r.point_ref - t);
@@ -274,8 +359,18 @@ DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Pr
         cell.plane = r.plane;
         cell.correlation = static_cast<float>(r.correlation);
         ++out->stats.accepted;
-        out->points.push_back({X, R.transpose() * (-r.plane.normalized()), r.sigma_along_ray,
-                               static_cast<int>(r.views.size()) + 1, static_cast<int>(ref), r.correlation});
+        std::vector<int> seen_by{static_cast<int>(ref)};
+        seen_by.insert(seen_by.end(), r.views.begin(), r.views.end());
+        DensePoint dp;
+        dp.xyz = X;
+        dp.normal = R.transpose() * (-r.plane.normalized());
+        dp.footprint = s * r.point_ref.z() / cam.params[geometry::kFx];
+        dp.seen_by = std::move(seen_by);
+        dp.sigma = r.sigma_along_ray;
+        dp.views = static_cast<int>(r.views.size()) + 1;
+        dp.ref = static_cast<int>(ref);
+        dp.correlation = r.correlation;
+        out->points.push_back(std::move(dp));
         propose(cand.cell, r.plane, r.correlation);
       }
     };
@@ -313,6 +408,25 @@ DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Pr
       progress("reference " + std::to_string(ref + 1) + " of " + std::to_string(n_views) + " (" + in.poses[ref].image +
                "): " + std::to_string(st.accepted) + " points of " + std::to_string(st.measured) + " patches measured, " +
                std::to_string(points.size()) + " in all");
+    }
+  }
+  if (o.free_space_min_violations > 0 && !points.empty()) {
+    const std::vector<int> violations = free_space_violations(std::vector<SurfaceSample>(points.begin(), points.end()), views, cam,
+                                                              o.free_space_gap_footprints, threads);
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if (violations[i] >= o.free_space_min_violations) {
+        ++result.references[static_cast<std::size_t>(points[i].ref)].free_space;
+        ++result.free_space_removed;
+        continue;
+      }
+      if (kept != i) points[kept] = std::move(points[i]);
+      ++kept;
+    }
+    points.resize(kept);
+    if (progress) {
+      progress("free-space check: " + std::to_string(result.free_space_removed) +
+               " points removed (in front of a surface a view saw behind them)");
     }
   }
   if (points.empty()) {

@@ -51,6 +51,11 @@ struct DensifyOptions {
   // default the sparse cloud's box grown by box_margin of its size on every side.
   std::optional<std::array<double, 6>> box;
   double box_margin = 0.05;
+  // The free-space check (densify.cpp, free_space_violations): a point is removed when it lies at
+  // least this many times in front of a point a view matched behind it, more than
+  // free_space_gap_footprints of its cell's width before it (0: no check).
+  int free_space_min_violations = 1;
+  double free_space_gap_footprints = 2;
   // Tiles of this many cells a side are grown in parallel.
   int tile_cells = 64;
   int threads = 0;  // 0: every core
@@ -76,6 +81,7 @@ struct ReferenceStats {
   std::size_t occupied = 0;   // cells already holding an earlier reference's point
   std::array<std::size_t, static_cast<std::size_t>(PatchFailure::Count)> failures{};
   std::size_t outside_box = 0;
+  std::size_t free_space = 0;  // its points removed by the free-space check
   std::vector<int> neighbours;
 };
 
@@ -85,9 +91,34 @@ struct DensifyResult {
   PointCloud cloud;
   std::vector<ReferenceStats> references;
   std::array<double, 6> box{};
+  std::size_t free_space_removed = 0;
 };
 
 using Progress = std::function<void(const std::string&)>;
+
+// A measured point as the free-space check sees it (world frame).
+struct SurfaceSample {
+  Eigen::Vector3d xyz = Eigen::Vector3d::Zero();
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit
+  double footprint = 0;        // the patch's radius: its cell's width at its depth in the reference
+  std::vector<int> seen_by;    // the views (indices into `views`) it was matched in
+};
+
+// The free-space check (after Furukawa & Ponce 2010, PMVS sec. 3.4, the visibility filter, and
+// Merrell et al. 2007, "Real-time visibility-based fusion of depth maps", free-space
+// violations): view j saw point Q (Q was matched in it), so nothing opaque lies on the ray from
+// j's centre C to Q. A point P whose patch (the disc of radius footprint_P about P in P's plane)
+// that ray crosses more than gap before Q therefore cannot be there. The crossing is
+// X = C + s (Q - C) with
+//   s = N_P . (P - C) / N_P . (Q - C),  a violation when 0 < s < 1, |X - P| <= footprint_P and
+//   (1 - s) |Q - C| > gap_footprints footprint_P.
+// Such points are the "foreground fattening" at depth edges: a window centred just past a wall's
+// rim still matches on the top's texture and puts the centre's point in the air beyond the rim,
+// in front of the wall's face that the views on that side see. Q is looked up among the points
+// view j matched, bucketed by their pixel in j; the disc projects within footprint_P fx / z_j(P)
+// px of P's pixel (+1 px for the lens). Returns, per point, the number of (view, Q) violations.
+std::vector<int> free_space_violations(const std::vector<SurfaceSample>& points, const std::vector<PatchView>& views,
+                                       const geometry::CameraModel& camera, double gap_footprints, int threads = 0);
 
 // Throws InputError when nothing can be measured: no seed in the box (naming the cloud), or no
 // accepted patch (naming the poses).

@@ -134,6 +134,32 @@ TEST(DensifyOptions, WindowShapeAndModel) {
   EXPECT_LT(run({"--max-obliquity-deg", "45"}, "oblique").points_mm.size(), baseline().points_mm.size());
 }
 
+TEST(DensifyOptions, MaxBendDegAndTheSmallerWindow) {
+  // The patch is curved (the demo's blend): a bend limit of 4 degrees refuses windows the default
+  // accepts; 180 turns the check off and accepts at least as many.
+  const auto tight = run({"--max-bend-deg", "4", "--bend-check-half-window-px", "0"}, "bend1");
+  EXPECT_LT(tight.points_mm.size(), baseline().points_mm.size());
+  EXPECT_GE(run({"--max-bend-deg", "180"}, "bend180").points_mm.size(), baseline().points_mm.size());
+  // The smaller window keeps the points of a smooth surface the limit refuses (its bend shrinks
+  // with the window); with a ratio of 0 it keeps none of them.
+  const auto small = run({"--max-bend-deg", "4"}, "bend1small");
+  std::cerr << "bend limit 4 degrees: " << tight.points_mm.size() << " points, " << small.points_mm.size()
+            << " with the smaller window; " << baseline().points_mm.size() << " at the defaults\n";
+  EXPECT_GT(small.points_mm.size(), tight.points_mm.size());
+  EXPECT_EQ(run({"--max-bend-deg", "4", "--bend-shrink-ratio", "0"}, "bend1ratio0").points_mm, tight.points_mm);
+}
+
+TEST(DensifyOptions, FreeSpaceGapAndMinViolations) {
+  // With no gap, a point of the convex blend lies in front of its neighbours as their views see
+  // them (its tangent plane is above the surface next to it): the check removes points, and a
+  // minimum of violations no point reaches removes none.
+  const auto no_gap = run({"--free-space-gap", "0"}, "gap0");
+  EXPECT_LT(no_gap.points_mm.size(), baseline().points_mm.size());
+  EXPECT_GT(run({"--free-space-gap", "0", "--free-space-min-violations", "1000000"}, "gap0many").points_mm.size(),
+            no_gap.points_mm.size());
+  EXPECT_GE(run({"--free-space-min-violations", "0"}, "nocheck").points_mm.size(), baseline().points_mm.size());
+}
+
 TEST(DensifyOptions, MarkerMargin) {
   // Marker 17's quiet zone reaches into the patch (x -41.7..-31.7, y -20..-10 grown by half its
   // side): a wider margin masks more.

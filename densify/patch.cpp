@@ -20,6 +20,7 @@ const char* to_string(PatchFailure f) {
     case PatchFailure::NotConverged: return "not converged";
     case PatchFailure::Shift: return "moved too far from the start";
     case PatchFailure::Oblique: return "too oblique";
+    case PatchFailure::Bent: return "bent across a crease";
     case PatchFailure::Correlation: return "correlation too low";
     case PatchFailure::Views: return "too few views";
     case PatchFailure::Count: break;
@@ -77,6 +78,15 @@ PatchMatcher::PatchMatcher(const geometry::CameraModel& camera, const PatchOptio
   }
   // coef = (A^T A)^-1 A^T values: the least-squares quadratic through the 9 grid values.
   fit_ = (A.transpose() * A).ldlt().solve(A.transpose());
+  if (options_.quadratic && options_.max_bend_deg < 180 && options_.bend_check_half_window_px > 0 &&
+      options_.bend_check_half_window_px < h) {
+    PatchOptions small = options_;
+    small.half_window_px = options_.bend_check_half_window_px;
+    small.window_stride_px = 1;
+    small.centre_half_window_px = std::min(options_.centre_half_window_px, small.half_window_px);
+    small.max_bend_deg = 180;
+    small_ = std::make_shared<const PatchMatcher>(camera, small);
+  }
 }
 
 PatchFailure PatchMatcher::measure(const std::vector<PatchView>& views, int ref, const Eigen::Vector2i& centre,
@@ -396,7 +406,6 @@ PatchFailure PatchMatcher::measure(const std::vector<PatchView>& views, int ref,
   }
   const double cos_oblique = std::abs(n.dot(ray0)) / (n.norm() * ray0.norm());
   if (cos_oblique < std::cos(o.max_obliquity_deg * M_PI / 180)) return PatchFailure::Oblique;
-
   // Precision (Gauss-Markov): Cov = s0^2 H^-1, s0^2 = SSR / (N - P); the point moves along its
   // ray with depth z = 1 / (n . r0): dz/dn = -r0 z^2, so sigma_z^2 = z^4 r0^T Cov_n r0 and the
   // distance along the ray is z |r0|. Neighbouring pixels' noise is correlated (JPEG, the
@@ -405,9 +414,57 @@ PatchFailure PatchMatcher::measure(const std::vector<PatchView>& views, int ref,
   const auto P = static_cast<double>(H.rows());
   const double dof = static_cast<double>(n_pix) * (P - G) / 2 - P;
   const double s0 = dof > 0 ? ssr / dof : 0;
-  const Eigen::Matrix3d cov = s0 * H.ldlt().solve(Eigen::MatrixXd::Identity(H.rows(), H.cols())).topLeftCorner<3, 3>();
+  const Eigen::MatrixXd H_inv = H.ldlt().solve(Eigen::MatrixXd::Identity(H.rows(), H.cols()));
+  const Eigen::Matrix3d cov = s0 * H_inv.topLeftCorner<3, 3>();
   const double z = 1 / n.dot(ray0);
   const double var_z = z * z * z * z * ray0.dot(cov * ray0);
+
+  // The bend across the window: the surface model at the 3 x 3 grid's rays, X_s = r_s / w_s, and
+  // the normals of its four quadrants (the cross product of the two grid edges leaving each
+  // quadrant's first corner); the largest angle between two of them. A window straddling a crease
+  // (a wall's rim) is fitted by a tight bend through the corner's inside, which is no surface.
+  if (G == 6) {
+    std::array<Eigen::Vector3d, kGridPoints> X;
+    for (int s = 0; s < kGridPoints; ++s) {
+      const double qx = grid_[s].x() / static_cast<double>(h), qy = grid_[s].y() / static_cast<double>(h);
+      const double w = n.dot(rays[s]) + curv.dot(Eigen::Vector3d(qx * qx, qx * qy, qy * qy));
+      if (!(w > 0)) return PatchFailure::Bent;
+      X[s] = rays[s] / w;
+    }
+    std::array<Eigen::Vector3d, 4> quad;
+    const int first[4] = {0, 1, 3, 4};
+    for (int k = 0; k < 4; ++k) {
+      const int s = first[k];
+      quad[k] = (X[s + 1] - X[s]).cross(X[s + 3] - X[s]).normalized();
+    }
+    double cos_min = 1;
+    for (int a1 = 0; a1 < 4; ++a1) {
+      for (int a2 = a1 + 1; a2 < 4; ++a2) cos_min = std::min(cos_min, quad[a1].dot(quad[a2]));
+    }
+    const double bend = std::acos(std::clamp(cos_min, -1.0, 1.0)) * 180 / M_PI;
+    if (o.max_bend_deg < 180 && !(bend <= o.max_bend_deg)) {
+      // A crease, or a surface curved more tightly than the limit? The bend of a smooth surface
+      // shrinks with the window (in proportion to its size), a crease's does not: the window of
+      // bend_check_half_window_px measured from here gives the point if it bends by at most
+      // bend_shrink_ratio of this one and within the limit itself (a crease near the small
+      // window's edge bends it less than the large one, but still beyond the limit).
+      if (small_) {
+        PatchResult sr;
+        if (small_->measure(views, ref, centre, n, active, &sr) == PatchFailure::None &&
+            sr.bend_deg <= std::min(o.max_bend_deg, o.bend_shrink_ratio * bend)) {
+          *out = std::move(sr);
+          return PatchFailure::None;
+        }
+      }
+      out->bend_planes.clear();
+      for (int k = 0; k < 4; ++k) {
+        const double d = quad[k].dot(X[first[k]]);
+        if (std::abs(d) > 1e-12) out->bend_planes.push_back(quad[k] / d);
+      }
+      return PatchFailure::Bent;
+    }
+    out->bend_deg = bend;
+  }
 
   out->plane = n;
   out->point_ref = ray0 * z;

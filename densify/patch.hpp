@@ -22,6 +22,7 @@
 #pragma once
 
 #include <array>
+#include <memory>
 #include <vector>
 
 #include <Eigen/Core>
@@ -62,10 +63,19 @@ struct PatchOptions {
   // reference.
   double max_shift_px = 3;
   double max_obliquity_deg = 80;
+  // Refused when the fitted surface's normal turns by more than this across the window (patch.cpp):
+  // a window across a crease. 180: no check.
+  double max_bend_deg = 20;
+  // ... unless a window of this half-width (every pixel sampled), measured from the bent patch,
+  // bends by at most bend_shrink_ratio of its bend and by at most max_bend_deg (a curved
+  // surface's bend shrinks with the window, about as 5/9 from 9 px to 5; a crease's does not):
+  // then its point is kept. 0: no second window.
+  int bend_check_half_window_px = 5;
+  double bend_shrink_ratio = 0.8;
 };
 
 // Why a patch was refused (for the summary).
-enum class PatchFailure { None, Behind, Border, Singular, NotConverged, Shift, Oblique, Correlation, Views, Count };
+enum class PatchFailure { None, Behind, Border, Singular, NotConverged, Shift, Oblique, Bent, Correlation, Views, Count };
 const char* to_string(PatchFailure f);
 
 struct PatchResult {
@@ -75,6 +85,11 @@ struct PatchResult {
   double correlation = 0;       // mean correlation over the views kept
   std::vector<int> views;       // indices into `views` of the views kept (reference excluded)
   int iterations = 0;
+  // A patch refused as bent: the planes (n . X = 1, reference frame) of its window's quadrants,
+  // from which the neighbouring cells can start (the faces on each side of a crease).
+  std::vector<Eigen::Vector3d> bend_planes;
+  // The largest angle between the normals of the window's quadrants (with the curvature terms).
+  double bend_deg = 0;
 };
 
 // The matcher for one reference photo: its camera, and the quadratic interpolation of the window.
@@ -100,6 +115,8 @@ private:
   // Least-squares fit of the 6 quadratic coefficients from values at the 3 x 3 grid: coef = fit_ * values.
   Eigen::Matrix<double, 6, 9> fit_;
   std::array<Eigen::Vector2i, 9> grid_;
+  // The smaller window that tells a crease from a tight curve (PatchOptions::bend_check_half_window_px).
+  std::shared_ptr<const PatchMatcher> small_;
 };
 
 }  // namespace photomill::densify

@@ -217,5 +217,53 @@ TEST(PatchMatcher, RefusesWhatItCannotMeasure) {
             PatchFailure::None);
 }
 
+// The reference pixel that sees world point X.
+Eigen::Vector2i pixel_of(const Scene& s, const Eigen::Vector3d& X) {
+  const Eigen::Vector3d Xc = s.views[0].rotation * X + s.views[0].translation_mm;
+  double u, v;
+  geometry::distort_to_pixel(geometry::shape_of(s.camera), s.camera.params.data(), Xc.x() / Xc.z(), Xc.y() / Xc.z(), &u, &v);
+  return Eigen::Vector2i(static_cast<int>(std::lround(u)), static_cast<int>(std::lround(v)));
+}
+
+double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::atan2(a.cross(b).norm(), std::abs(a.dot(b))) * 180 / M_PI;
+}
+
+TEST(PatchMatcher, RefusesAWindowAcrossACreaseAndProposesItsTwoFaces) {
+  // A flat top (z = 0, x < 0) ending in a face that drops at 71.6 degrees (z = -3x): a wall's
+  // rim, seen by every view. A window centred on the crease is fitted by a tight bend through
+  // the solid's inside (no surface); it is refused, and its quadrants' planes are the two faces.
+  const Surface rim = [](double x, double) { return x < 0 ? 0.0 : -3 * x; };
+  const Scene s = render(rim, kRing);
+  const PatchMatcher m(s.camera, {});
+  const Eigen::Vector2i crease = pixel_of(s, Eigen::Vector3d(0, 0, 0));
+  const double z = true_depth(s, rim, crease);
+  PatchResult r;
+  ASSERT_EQ(m.measure(s.views, 0, crease, facing_plane(s.camera, crease, z), {1, 2, 3}, &r), PatchFailure::Bent);
+  const Eigen::Vector3d top(0, 0, 1), face = Eigen::Vector3d(3, 0, 1).normalized();
+  double best_top = 180, best_face = 180;
+  ASSERT_FALSE(r.bend_planes.empty());
+  for (const Eigen::Vector3d& plane : r.bend_planes) {
+    const Eigen::Vector3d normal = s.views[0].rotation.transpose() * plane.normalized();
+    best_top = std::min(best_top, angle_deg(normal, top));
+    best_face = std::min(best_face, angle_deg(normal, face));
+  }
+  EXPECT_LT(best_top, 15);
+  EXPECT_LT(best_face, 15);
+  // Without the check the same window is accepted, its point inside the solid, off the crease.
+  PatchOptions no_check;
+  no_check.max_bend_deg = 180;
+  ASSERT_EQ(PatchMatcher(s.camera, no_check).measure(s.views, 0, crease, facing_plane(s.camera, crease, z), {1, 2, 3}, &r),
+            PatchFailure::None);
+  const double off = ray_error(s, rim, crease, r);
+  std::cerr << "a window across the crease, accepted without the check: " << off << " mm off the surface\n";
+  EXPECT_GT(off, 0.05);
+  // A window wholly on the top, its edge a millimetre from the crease: accepted, exact.
+  const Eigen::Vector2i on_top = pixel_of(s, Eigen::Vector3d(-3.5, 0, 0));
+  ASSERT_EQ(m.measure(s.views, 0, on_top, facing_plane(s.camera, on_top, true_depth(s, rim, on_top)), {1, 2, 3}, &r),
+            PatchFailure::None);
+  EXPECT_LT(ray_error(s, rim, on_top, r), 0.005);
+}
+
 }  // namespace
 }  // namespace photomill::densify

@@ -258,7 +258,16 @@ Result fit_point_cloud(const PointCloud& cloud, const Options& options, const st
     r.extent = (hi - lo).maxCoeff();
   }
   std::optional<log::Step> step(std::in_place, "selecting the part's points among " + std::to_string(cloud.points_mm.size()));
-  r.selection = select_part(cloud.points_mm, options.select);
+  // The cloud's own normals (densify writes them) decide which points are on walls.
+  std::vector<Eigen::Vector3d> normals;
+  {
+    const PointProperty *nx = cloud.find("nx"), *ny = cloud.find("ny"), *nz = cloud.find("nz");
+    if (nx && ny && nz) {
+      normals.resize(cloud.points_mm.size());
+      for (std::size_t i = 0; i < normals.size(); ++i) normals[i] = {nx->values[i], ny->values[i], nz->values[i]};
+    }
+  }
+  r.selection = select_part(cloud.points_mm, options.select, normals);
   std::vector<Eigen::Vector3d> points;
   points.reserve(r.selection.kept.size());
   for (std::size_t k : r.selection.kept) points.push_back(cloud.points_mm[k]);

@@ -154,9 +154,10 @@ Selection select_by_box_and_planes(const std::vector<Eigen::Vector3d>& points, c
 
 }  // namespace
 
-Selection select_part(const std::vector<Eigen::Vector3d>& points, const SelectOptions& o) {
+Selection select_part(const std::vector<Eigen::Vector3d>& points, const SelectOptions& o,
+                      const std::vector<Eigen::Vector3d>& normals) {
   Selection sel = select_by_box_and_planes(points, o);
-  sel.walls = split_walls(points, sel.kept, o.walls);
+  sel.walls = split_walls(points, sel.kept, o.walls, normals);
   if (sel.walls && sel.kept.size() < 3) {
     throw GeometryError("only walls and the floor at their foot are left (" + std::to_string(sel.walls->wall_points) +
                         " points on faces steeper than " + sig(o.walls.slope_deg) +

@@ -55,8 +55,10 @@ struct Selection {
 };
 
 // Throws GeometryError when a filter leaves nothing, when no dominant plane is found, or when
-// the cloud is only that plane (nothing stands on it).
-Selection select_part(const std::vector<Eigen::Vector3d>& points, const SelectOptions& options);
+// the cloud is only that plane (nothing stands on it). `normals`: the cloud's own, one per point,
+// or empty (split_walls).
+Selection select_part(const std::vector<Eigen::Vector3d>& points, const SelectOptions& options,
+                      const std::vector<Eigen::Vector3d>& normals = {});
 
 // The dominant plane of points[indices] by RANSAC, refined by least squares on its inliers.
 // Throws GeometryError if no plane holds min_plane_fraction of them.

@@ -82,13 +82,21 @@ double quantile(std::vector<double> v, double q) {
 
 constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
 
-// Step 1 of walls.hpp: the points whose neighbours' best-fit plane (PCA) is more than slope_deg
-// from z; marks them in `wall`.
+// Step 1 of walls.hpp: the points whose own normal, or else their neighbours' best-fit plane (PCA),
+// is more than slope_deg from z; marks them in `wall`.
 std::vector<std::size_t> wall_points(const std::vector<Eigen::Vector3d>& points, const std::vector<std::size_t>& kept,
-                                     const Buckets& near, const WallOptions& o, std::vector<char>& wall) {
+                                     const Buckets& near, const WallOptions& o, const std::vector<Eigen::Vector3d>& normals,
+                                     std::vector<char>& wall) {
   const double cos_wall = std::cos(o.slope_deg * std::numbers::pi / 180);
   std::vector<std::size_t> walls;
   for (std::size_t k : kept) {
+    if (k < normals.size() && normals[k].allFinite() && normals[k].norm() > 0) {
+      if (std::abs(normals[k].normalized().z()) < cos_wall) {
+        wall[k] = 1;
+        walls.push_back(k);
+      }
+      continue;
+    }
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     Eigen::Matrix3d second = Eigen::Matrix3d::Zero();
     std::size_t n = 0;
@@ -203,7 +211,7 @@ std::vector<char> rim_points(const std::vector<Eigen::Vector3d>& points, const s
 }  // namespace
 
 std::optional<WallSummary> split_walls(const std::vector<Eigen::Vector3d>& points, std::vector<std::size_t>& kept,
-                                       const WallOptions& o) {
+                                       const WallOptions& o, const std::vector<Eigen::Vector3d>& normals) {
   if (!o.enabled || kept.size() < 2 * o.min_region_points) return std::nullopt;
   // r: at least radius_spacings mean spacings of the points over their xy box.
   Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
@@ -218,7 +226,7 @@ std::optional<WallSummary> split_walls(const std::vector<Eigen::Vector3d>& point
 
   // 1. Wall points: the normal of the neighbourhood's best-fit plane more than slope_deg from z.
   std::vector<char> wall(points.size(), 0);
-  const std::vector<std::size_t> walls = wall_points(points, kept, near, o, wall);
+  const std::vector<std::size_t> walls = wall_points(points, kept, near, o, normals, wall);
   log::debug("walls: " + std::to_string(walls.size()) + " of " + std::to_string(kept.size()) +
              " points on faces steeper than " + std::to_string(o.slope_deg) + " degrees (radius " + std::to_string(r) + " mm)");
 

@@ -3,9 +3,9 @@
 //
 // Found from the data in the machine frame (z up, the control points' frame), at the scale
 // r = max(radius_mm, radius_spacings x the points' mean spacing over their xy box):
-// 1. Each point's normal is that of the best-fit plane of its neighbours within r (PCA of their
-//    3 x 3 covariance, at least min_neighbours of them). A point whose normal is more than
-//    slope_deg from z is on a wall's face.
+// 1. Each point's normal is its own where the cloud has normals (densify's), else that of the
+//    best-fit plane of its neighbours within r (PCA of their 3 x 3 covariance, at least
+//    min_neighbours of them). A point whose normal is more than slope_deg from z is on a wall's face.
 // 2. The other points are joined into regions: two points within r of each other, joined by a
 //    segment no steeper than slope_deg, are in the same region. A wall (higher than r, or steeper
 //    than slope_deg) separates the top from the floor at its foot, with or without points on
@@ -59,8 +59,11 @@ struct WallSummary {
 };
 
 // Splits points[kept] (world mm, z up). Returns nothing when no wall is found (kept unchanged);
-// else removes the walls' and the floor's points from kept.
+// else removes the walls' and the floor's points from kept. `normals` (one per point, or empty):
+// the cloud's own normals (densify measures each point's), which decide step 1 for the points
+// that have a finite, non-zero one instead of their neighbourhood's plane: at a dense cloud's
+// rim a neighbourhood of r holds both the top and the wall's face, and its plane is neither's.
 std::optional<WallSummary> split_walls(const std::vector<Eigen::Vector3d>& points, std::vector<std::size_t>& kept,
-                                       const WallOptions& options);
+                                       const WallOptions& options, const std::vector<Eigen::Vector3d>& normals = {});
 
 }  // namespace photomill::fitsurf
