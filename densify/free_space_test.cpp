@@ -5,33 +5,13 @@
 #include <gtest/gtest.h>
 
 #include "densify/densify.hpp"
+#include "densify/test_views.hpp"
 
 namespace photomill::densify {
 namespace {
 
-geometry::CameraModel camera() {
-  geometry::CameraModel c;
-  c.width_px = 480;
-  c.height_px = 360;
-  c.params[geometry::kFx] = 800;
-  c.params[geometry::kFy] = 800;
-  c.params[geometry::kCx] = 239.5;
-  c.params[geometry::kCy] = 179.5;
-  return c;
-}
-
-// A view from centre C looking at the origin (cam_from_world).
-PatchView look_at(const Eigen::Vector3d& C) {
-  const Eigen::Vector3d z = (-C).normalized();
-  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
-  const Eigen::Vector3d y = z.cross(x);
-  PatchView v;
-  v.rotation.row(0) = x;
-  v.rotation.row(1) = y;
-  v.rotation.row(2) = z;
-  v.translation_mm = -v.rotation * C;
-  return v;
-}
+geometry::CameraModel camera() { return test::small_camera(false); }
+PatchView look_at(const Eigen::Vector3d& C) { return test::look_at_origin_from(C); }
 
 SurfaceSample sample(const Eigen::Vector3d& p, const Eigen::Vector3d& n, std::vector<int> seen_by) {
   SurfaceSample s;

@@ -11,6 +11,7 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include "densify/test_views.hpp"
 #include "geometry/camera_model.hpp"
 
 namespace photomill::densify {
@@ -23,33 +24,13 @@ struct Scene {
   std::vector<PatchView> views;
 };
 
-geometry::CameraModel test_camera() {
-  geometry::CameraModel c;
-  c.width_px = 480;
-  c.height_px = 360;
-  c.params[geometry::kFx] = 800;
-  c.params[geometry::kFy] = 800;
-  c.params[geometry::kCx] = 239.5;
-  c.params[geometry::kCy] = 179.5;
-  c.params[geometry::kK1] = -0.06;
-  c.params[geometry::kK2] = 0.02;
-  c.distortion_count = 5;
-  return c;
-}
+geometry::CameraModel test_camera() { return test::small_camera(true); }
 
 // A view from (azimuth, elevation) at `distance` mm looking at the origin; cam_from_world.
 PatchView look_at(double azimuth_deg, double elevation_deg, double distance) {
   const double az = azimuth_deg * M_PI / 180, el = elevation_deg * M_PI / 180;
-  const Eigen::Vector3d C(distance * std::cos(el) * std::cos(az), distance * std::cos(el) * std::sin(az), distance * std::sin(el));
-  const Eigen::Vector3d z = (-C).normalized();
-  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
-  const Eigen::Vector3d y = z.cross(x);
-  PatchView v;
-  v.rotation.row(0) = x;
-  v.rotation.row(1) = y;
-  v.rotation.row(2) = z;
-  v.translation_mm = -v.rotation * C;
-  return v;
+  return test::look_at_origin_from(
+      {distance * std::cos(el) * std::cos(az), distance * std::cos(el) * std::sin(az), distance * std::sin(el)});
 }
 
 // A smooth random texture: a sum of sinusoids of 2-6 mm wavelength (8-24 px), grey 40-215.
