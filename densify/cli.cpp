@@ -94,6 +94,10 @@ DensifyInputs read_inputs(Cli& c) {
   if (c.cloud.empty()) throw UsageError("give the sparse cloud (triangulate's cloud.ply)");
   if (c.camera.empty() || c.poses.empty()) throw UsageError("give the photos' camera and poses: --camera FILE --poses FILE");
   if (o.min_angle_deg >= o.max_angle_deg) throw UsageError("--min-angle-deg must be below --max-angle-deg");
+  if (o.patch.bend_check_half_window_px > 0 && o.patch.bend_check_half_window_px >= o.patch.half_window_px) {
+    throw UsageError("--bend-check-half-window-px must be below --half-window-px (" + std::to_string(o.patch.half_window_px) +
+                     "), or 0 for no second window");
+  }
   if (!c.box.empty()) {
     if (!(c.box[0] < c.box[3] && c.box[1] < c.box[4] && c.box[2] < c.box[5])) {
       throw UsageError("--box: each minimum must be below its maximum");

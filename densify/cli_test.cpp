@@ -163,6 +163,8 @@ INSTANTIATE_TEST_SUITE_P(
                   "each minimum must be below its maximum"},
         ErrorCase{"AngleRangeEmpty", {}, [](const Job&, auto& a) { set_arg(a, "--min-angle-deg", "40"); set_arg(a, "--max-angle-deg", "30"); },
                   2, "--min-angle-deg must be below --max-angle-deg"},
+        ErrorCase{"BendWindowNotSmaller", {}, [](const Job&, auto& a) { set_arg(a, "--bend-check-half-window-px", "9"); }, 2,
+                  "--bend-check-half-window-px must be below --half-window-px"},
         // Poses 15 mm off along x (another job's, or a wrong unit): no patch matches anywhere.
         ErrorCase{"PosesThatDoNotFitThePhotos", [](auto& f) { f[5] = std::to_string(std::stod(f[5]) + 15); }, {}, 1,
                   "no patch was accepted"}),
