@@ -406,6 +406,7 @@ PatchFailure PatchMatcher::measure(const std::vector<PatchView>& views, int ref,
   }
   const double cos_oblique = std::abs(n.dot(ray0)) / (n.norm() * ray0.norm());
   if (cos_oblique < std::cos(o.max_obliquity_deg * M_PI / 180)) return PatchFailure::Oblique;
+
   // Precision (Gauss-Markov): Cov = s0^2 H^-1, s0^2 = SSR / (N - P); the point moves along its
   // ray with depth z = 1 / (n . r0): dz/dn = -r0 z^2, so sigma_z^2 = z^4 r0^T Cov_n r0 and the
   // distance along the ray is z |r0|. Neighbouring pixels' noise is correlated (JPEG, the
@@ -423,25 +424,31 @@ PatchFailure PatchMatcher::measure(const std::vector<PatchView>& views, int ref,
   // the normals of its four quadrants (the cross product of the two grid edges leaving each
   // quadrant's first corner); the largest angle between two of them. A window straddling a crease
   // (a wall's rim) is fitted by a tight bend through the corner's inside, which is no surface.
+  out->bend_planes.clear();
+  out->bend_deg = 0;
   if (G == 6) {
     std::array<Eigen::Vector3d, kGridPoints> X;
-    for (int s = 0; s < kGridPoints; ++s) {
+    bool turned = false;  // a grid ray meets the fitted surface behind the camera: it turned round
+    for (int s = 0; s < kGridPoints && !turned; ++s) {
       const double qx = grid_[s].x() / static_cast<double>(h), qy = grid_[s].y() / static_cast<double>(h);
       const double w = n.dot(rays[s]) + curv.dot(Eigen::Vector3d(qx * qx, qx * qy, qy * qy));
-      if (!(w > 0)) return PatchFailure::Bent;
-      X[s] = rays[s] / w;
+      turned = !(w > 0);
+      if (!turned) X[s] = rays[s] / w;
     }
     std::array<Eigen::Vector3d, 4> quad;
     const int first[4] = {0, 1, 3, 4};
-    for (int k = 0; k < 4; ++k) {
-      const int s = first[k];
-      quad[k] = (X[s + 1] - X[s]).cross(X[s + 3] - X[s]).normalized();
+    double bend = 180;
+    if (!turned) {
+      for (int k = 0; k < 4; ++k) {
+        const int s = first[k];
+        quad[k] = (X[s + 1] - X[s]).cross(X[s + 3] - X[s]).normalized();
+      }
+      double cos_min = 1;
+      for (int a1 = 0; a1 < 4; ++a1) {
+        for (int a2 = a1 + 1; a2 < 4; ++a2) cos_min = std::min(cos_min, quad[a1].dot(quad[a2]));
+      }
+      bend = std::acos(std::clamp(cos_min, -1.0, 1.0)) * 180 / M_PI;
     }
-    double cos_min = 1;
-    for (int a1 = 0; a1 < 4; ++a1) {
-      for (int a2 = a1 + 1; a2 < 4; ++a2) cos_min = std::min(cos_min, quad[a1].dot(quad[a2]));
-    }
-    const double bend = std::acos(std::clamp(cos_min, -1.0, 1.0)) * 180 / M_PI;
     if (o.max_bend_deg < 180 && !(bend <= o.max_bend_deg)) {
       // A crease, or a surface curved more tightly than the limit? The bend of a smooth surface
       // shrinks with the window (in proportion to its size), a crease's does not: the window of
@@ -456,8 +463,7 @@ PatchFailure PatchMatcher::measure(const std::vector<PatchView>& views, int ref,
           return PatchFailure::None;
         }
       }
-      out->bend_planes.clear();
-      for (int k = 0; k < 4; ++k) {
+      for (int k = 0; k < 4 && !turned; ++k) {
         const double d = quad[k].dot(X[first[k]]);
         if (std::abs(d) > 1e-12) out->bend_planes.push_back(quad[k] / d);
       }
