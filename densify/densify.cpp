@@ -430,6 +430,12 @@ DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Pr
     }
   }
   if (points.empty()) {
+    if (result.free_space_removed > 0) {
+      throw InputError(in.poses_source, 0,
+                       "the free-space check removed all " + std::to_string(result.free_space_removed) +
+                           " points (each lies in front of a surface a view saw behind it): the poses may not fit "
+                           "the photos; --free-space-min-violations 0 turns the check off");
+    }
     throw InputError(in.poses_source, 0,
                      "no patch was accepted in any photo: the photos may not match their poses or camera, or the "
                      "surface has no texture (see the refusals above with -v)");
