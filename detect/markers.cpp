@@ -734,6 +734,7 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFram
                               " grey levels is below " + std::to_string(static_cast<int>(o.min_contrast))};
   }
   if (curve.sigma > o.max_blur_px) return {std::nullopt, "edge blur sigma " + std::to_string(curve.sigma) + " px too large"};
+
   if (curve.rms > o.max_residual * curve.contrast) return {std::nullopt, "edge does not look like a step (fit residual too large)"};
   return {curve, "", iterations};
 }
@@ -950,8 +951,11 @@ EdgeFit refine_pass(const cv::Mat& grey, const Levels& levels, const std::array<
     codes = inner_codes(*H, code, cells, {frames[0].length, frames[1].length, frames[2].length, frames[3].length});
   }
   for (int e = 0; e < 4; ++e) {
-    // Across edge e, the marker extends as far as its neighbouring edges are long.
-    const double across = std::min(frames[(e + 3) % 4].length, frames[(e + 1) % 4].length) / cells;
+    // Across edge e, the marker extends as far as its neighbouring edges reach across it: their
+    // length times the sine of the angle they make with it (a skewed marker is thinner across an
+    // edge than its sides are long).
+    const double across = std::min(frames[(e + 3) % 4].length * sin_angle[e],
+                                   frames[(e + 1) % 4].length * sin_angle[(e + 1) % 4]) / cells;
     cell_px[e] = across;
   }
   // fits[k][0]: the edge ending at corner k (edge k-1); fits[k][1]: the edge starting there (edge k).
