@@ -734,7 +734,6 @@ EdgeFitResult fit_edge(const cv::Mat& grey, const Levels& levels, const EdgeFram
                               " grey levels is below " + std::to_string(static_cast<int>(o.min_contrast))};
   }
   if (curve.sigma > o.max_blur_px) return {std::nullopt, "edge blur sigma " + std::to_string(curve.sigma) + " px too large"};
-
   if (curve.rms > o.max_residual * curve.contrast) return {std::nullopt, "edge does not look like a step (fit residual too large)"};
   return {curve, "", iterations};
 }
