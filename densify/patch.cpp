@@ -406,7 +406,6 @@ PatchFailure PatchMatcher::measure(const std::vector<PatchView>& views, int ref,
   }
   const double cos_oblique = std::abs(n.dot(ray0)) / (n.norm() * ray0.norm());
   if (cos_oblique < std::cos(o.max_obliquity_deg * M_PI / 180)) return PatchFailure::Oblique;
-
   // Precision (Gauss-Markov): Cov = s0^2 H^-1, s0^2 = SSR / (N - P); the point moves along its
   // ray with depth z = 1 / (n . r0): dz/dn = -r0 z^2, so sigma_z^2 = z^4 r0^T Cov_n r0 and the
   // distance along the ray is z |r0|. Neighbouring pixels' noise is correlated (JPEG, the
