@@ -9,6 +9,7 @@
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "detect/sift_scale_space.hpp"
 #include "formats/error.hpp"
 
 namespace photomill::detect {
@@ -49,17 +50,18 @@ FeatureSet detect_sift(const cv::Mat& grey, const std::string& image_name, const
   cv::Mat descriptors;
   const bool clearance = !mask.empty() && o.mask_clearance_per_size > 0;
   const bool opencv_cap = o.max_features == 0 || (o.cap_cell_px == 0 && o.cap_order == CapOrder::Response);
+  // One scale space for finding and describing (sift_scale_space.hpp): cv::SIFT would build it
+  // again to describe keypoints chosen after detection.
+  const SiftScaleSpace space(grey, o.octave_layers, o.sigma);
   if (!clearance && opencv_cap) {
-    // OpenCV keeps the `max_features` best by response itself (KeyPointsFilter::retainBest).
-    const auto sift = cv::SIFT::create(o.max_features, o.octave_layers, o.contrast_threshold, o.edge_threshold,
-                                       o.sigma, CV_8U);
-    sift->detectAndCompute(grey, mask, keypoints, descriptors);
+    // As cv::SIFT::detectAndCompute with nfeatures = max_features: the strongest kept
+    // (KeyPointsFilter::retainBest), then the mask.
+    keypoints = space.keypoints(o.contrast_threshold, o.edge_threshold);
+    if (o.max_features > 0) cv::KeyPointsFilter::retainBest(keypoints, o.max_features);
+    if (!mask.empty()) cv::KeyPointsFilter::runByPixelsMask(keypoints, mask);
   } else {
-    // All keypoints, with a clearance those too near the mask's blanks dropped, then the cap,
-    // then descriptors for the kept ones only.
-    const auto sift = cv::SIFT::create(0, o.octave_layers, o.contrast_threshold, o.edge_threshold, o.sigma, CV_8U);
-    std::vector<cv::KeyPoint> all;
-    sift->detect(grey, all, mask);
+    // All keypoints, with a clearance those too near the mask's blanks dropped, then the cap.
+    std::vector<cv::KeyPoint> all = space.keypoints(o.contrast_threshold, o.edge_threshold, mask);
     if (clearance) {
       // Exact Euclidean distance of every allowed pixel to the nearest blanked one (OpenCV's
       // DIST_MASK_PRECISE: Felzenszwalb & Huttenlocher 2012, "Distance transforms of sampled functions").
@@ -77,8 +79,8 @@ FeatureSet detect_sift(const cv::Mat& grey, const std::string& image_name, const
     } else {
       keypoints = o.max_features > 0 ? cap(all, o) : std::move(all);
     }
-    sift->compute(grey, keypoints, descriptors);
   }
+  descriptors = space.descriptors(keypoints);
   FeatureSet fs;
   fs.image = image_name;
   fs.image_width_px = grey.cols;
