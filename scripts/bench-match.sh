@@ -52,7 +52,7 @@ for entry in "${scenes[@]}"; do
   name=${entry%%:*} dir=${entry#*:}
   out=$work/$name-out
   make -s -f "$here/Makefile.example" -j"$(nproc)" BIN="$build/bin" DEMO="$dir" OUT="$out" \
-    "$out/observations.csv" "$out/markers/poses.csv" >"$out.log" 2>&1 ||
+    "$out/observations.csv" "$out/markers/cloud.ply" >"$out.log" 2>&1 ||
     { echo "bench-match: the chain failed on $name (see $out.log)" >&2; exit 1; }
   declare -A cpu=() wall=() rss=()
   for _ in $(seq "$runs"); do
