@@ -26,13 +26,21 @@ constexpr float kCellWidth = 3;         // a cell's width in the keypoint's sigm
 constexpr float kClip = 0.2f;           // each entry clipped at this share of the norm
 constexpr float kByteScale = 512;
 
-// Per-sample buffers of a window, reused from one keypoint to the next.
+// Per-sample buffers of a window, reused from one keypoint to the next: the gradient (dx, dy),
+// the Gaussian weight's exponent w, the descriptor's cell coordinates (rbins, cbins).
 struct Scratch {
   std::vector<float> dx, dy, w, angle, mag, rbins, cbins;
   void resize(int len) {
     for (auto* v : {&dx, &dy, &w, &angle, &mag, &rbins, &cbins}) {
       if (v->size() < static_cast<std::size_t>(len)) v->resize(static_cast<std::size_t>(len));
     }
+  }
+  // For the first k samples: the gradient's angle (degrees, OpenCV's fast atan2) and magnitude,
+  // and the weight exp(w).
+  void polar(int k) {
+    cv::hal::exp32f(w.data(), w.data(), k);
+    cv::hal::fastAtan2(dy.data(), dx.data(), angle.data(), k, true);
+    cv::hal::magnitude32f(dx.data(), dy.data(), mag.data(), k);
   }
 };
 
@@ -44,11 +52,6 @@ float orientation_histogram(const cv::Mat& img, cv::Point pt, int radius, float 
   const int len = (2 * radius + 1) * (2 * radius + 1);
   const float weight_scale = -1.f / (2.f * sigma * sigma);
   s.resize(len);
-  float* dx = s.dx.data();
-  float* dy = s.dy.data();
-  float* w = s.w.data();
-  float* angle = s.angle.data();
-  float* mag = s.mag.data();
   int k = 0;
   for (int i = -radius; i <= radius; ++i) {
     const int y = pt.y + i;
@@ -59,23 +62,21 @@ float orientation_histogram(const cv::Mat& img, cv::Point pt, int radius, float 
     for (int j = -radius; j <= radius; ++j) {
       const int x = pt.x + j;
       if (x <= 0 || x >= img.cols - 1) continue;
-      dx[k] = row[x + 1] - row[x - 1];
-      dy[k] = up[x] - down[x];
-      w[k] = static_cast<float>(i * i + j * j) * weight_scale;
+      s.dx[k] = row[x + 1] - row[x - 1];
+      s.dy[k] = up[x] - down[x];
+      s.w[k] = static_cast<float>(i * i + j * j) * weight_scale;
       ++k;
     }
   }
-  cv::hal::exp32f(w, w, k);
-  cv::hal::fastAtan2(dy, dx, angle, k, true);
-  cv::hal::magnitude32f(dx, dy, mag, k);
+  s.polar(k);
   std::array<float, kOrientationBins + 4> raw{};
   CV_Assert(bins == kOrientationBins);
   float* h = raw.data() + 2;
   for (int q = 0; q < k; ++q) {
-    int bin = cvRound((static_cast<float>(bins) / 360.f) * angle[q]);
+    int bin = cvRound((static_cast<float>(bins) / 360.f) * s.angle[q]);
     if (bin >= bins) bin -= bins;
     if (bin < 0) bin += bins;
-    h[bin] += w[q] * mag[q];
+    h[bin] += s.w[q] * s.mag[q];
   }
   h[-1] = h[bins - 1];
   h[-2] = h[bins - 2];
@@ -108,33 +109,47 @@ DogLayer dog_layer(const std::vector<cv::Mat>& gauss, int layers, int octave, in
 // neighbourhood, moving to the neighbouring sample while an offset exceeds 0.5; then the contrast
 // test on D(x) = D + grad D . x / 2 and the edge test on the 2 x 2 Hessian (section 4.1).
 // Derivatives on grey values scaled to [0, 1], as OpenCV's.
-bool refine_extremum(const std::vector<cv::Mat>& gauss, int octave, int& layer, int& r, int& c, int layers,
-                     float contrast_threshold, float edge_threshold, float sigma, cv::KeyPoint& kpt) {
+// The DoG's value at (r, c) of `layer` and its first and second derivatives by central
+// differences (x along columns, y along rows, s across layers), on grey values scaled to [0, 1].
+struct Derivatives {
+  float value;
+  cv::Vec3f gradient;  // d/dx, d/dy, d/ds
+  float dxx, dyy, dss, dxy, dxs, dys;
+};
+
+Derivatives derivatives(const std::vector<cv::Mat>& gauss, int layers, int octave, int layer, int r, int c) {
   constexpr float img_scale = 1.f / 255.f;
   constexpr float deriv_scale = img_scale * 0.5f;
   constexpr float second_deriv_scale = img_scale;
   constexpr float cross_deriv_scale = img_scale * 0.25f;
+  const DogLayer img = dog_layer(gauss, layers, octave, layer);
+  const DogLayer prev = dog_layer(gauss, layers, octave, layer - 1);
+  const DogLayer next = dog_layer(gauss, layers, octave, layer + 1);
+  Derivatives d;
+  d.value = img.at(r, c);
+  d.gradient = cv::Vec3f((img.at(r, c + 1) - img.at(r, c - 1)) * deriv_scale,
+                         (img.at(r + 1, c) - img.at(r - 1, c)) * deriv_scale,
+                         (next.at(r, c) - prev.at(r, c)) * deriv_scale);
+  const float v2 = d.value * 2;
+  d.dxx = (img.at(r, c + 1) + img.at(r, c - 1) - v2) * second_deriv_scale;
+  d.dyy = (img.at(r + 1, c) + img.at(r - 1, c) - v2) * second_deriv_scale;
+  d.dss = (next.at(r, c) + prev.at(r, c) - v2) * second_deriv_scale;
+  d.dxy = (img.at(r + 1, c + 1) - img.at(r + 1, c - 1) - img.at(r - 1, c + 1) + img.at(r - 1, c - 1)) *
+          cross_deriv_scale;
+  d.dxs = (next.at(r, c + 1) - next.at(r, c - 1) - prev.at(r, c + 1) + prev.at(r, c - 1)) * cross_deriv_scale;
+  d.dys = (next.at(r + 1, c) - next.at(r - 1, c) - prev.at(r + 1, c) + prev.at(r - 1, c)) * cross_deriv_scale;
+  return d;
+}
+
+bool refine_extremum(const std::vector<cv::Mat>& gauss, int octave, int& layer, int& r, int& c, int layers,
+                     float contrast_threshold, float edge_threshold, float sigma, cv::KeyPoint& kpt) {
+  const cv::Mat& octave_base = gauss[static_cast<std::size_t>(octave * (layers + 3))];
   float xi = 0, xr = 0, xc = 0;
   int move = 0;
   for (; move < kMaxMoves; ++move) {
-    const DogLayer img = dog_layer(gauss, layers, octave, layer);
-    const DogLayer prev = dog_layer(gauss, layers, octave, layer - 1);
-    const DogLayer next = dog_layer(gauss, layers, octave, layer + 1);
-    const cv::Vec3f dD((img.at(r, c + 1) - img.at(r, c - 1)) * deriv_scale,
-                       (img.at(r + 1, c) - img.at(r - 1, c)) * deriv_scale,
-                       (next.at(r, c) - prev.at(r, c)) * deriv_scale);
-    const float v2 = img.at(r, c) * 2;
-    const float dxx = (img.at(r, c + 1) + img.at(r, c - 1) - v2) * second_deriv_scale;
-    const float dyy = (img.at(r + 1, c) + img.at(r - 1, c) - v2) * second_deriv_scale;
-    const float dss = (next.at(r, c) + prev.at(r, c) - v2) * second_deriv_scale;
-    const float dxy = (img.at(r + 1, c + 1) - img.at(r + 1, c - 1) - img.at(r - 1, c + 1) +
-                       img.at(r - 1, c - 1)) * cross_deriv_scale;
-    const float dxs = (next.at(r, c + 1) - next.at(r, c - 1) - prev.at(r, c + 1) +
-                       prev.at(r, c - 1)) * cross_deriv_scale;
-    const float dys = (next.at(r + 1, c) - next.at(r - 1, c) - prev.at(r + 1, c) +
-                       prev.at(r - 1, c)) * cross_deriv_scale;
-    const cv::Matx33f H(dxx, dxy, dxs, dxy, dyy, dys, dxs, dys, dss);
-    const cv::Vec3f X = H.solve(dD, cv::DECOMP_LU);
+    const Derivatives d = derivatives(gauss, layers, octave, layer, r, c);
+    const cv::Matx33f H(d.dxx, d.dxy, d.dxs, d.dxy, d.dyy, d.dys, d.dxs, d.dys, d.dss);
+    const cv::Vec3f X = H.solve(d.gradient, cv::DECOMP_LU);
     xi = -X[2];
     xr = -X[1];
     xc = -X[0];
@@ -144,28 +159,18 @@ bool refine_extremum(const std::vector<cv::Mat>& gauss, int octave, int& layer, 
     c += cvRound(xc);
     r += cvRound(xr);
     layer += cvRound(xi);
-    if (layer < 1 || layer > layers || c < kBorder || c >= img.cols() - kBorder || r < kBorder ||
-        r >= img.rows() - kBorder) {
+    if (layer < 1 || layer > layers || c < kBorder || c >= octave_base.cols - kBorder || r < kBorder ||
+        r >= octave_base.rows - kBorder) {
       return false;
     }
   }
   if (move >= kMaxMoves) return false;
-  const DogLayer img = dog_layer(gauss, layers, octave, layer);
-  const DogLayer prev = dog_layer(gauss, layers, octave, layer - 1);
-  const DogLayer next = dog_layer(gauss, layers, octave, layer + 1);
-  const cv::Matx31f dD((img.at(r, c + 1) - img.at(r, c - 1)) * deriv_scale,
-                       (img.at(r + 1, c) - img.at(r - 1, c)) * deriv_scale,
-                       (next.at(r, c) - prev.at(r, c)) * deriv_scale);
-  const float t = dD.dot(cv::Matx31f(xc, xr, xi));
-  const float contrast = img.at(r, c) * img_scale + t * 0.5f;
+  const Derivatives d = derivatives(gauss, layers, octave, layer, r, c);
+  const float t = cv::Matx31f(d.gradient).dot(cv::Matx31f(xc, xr, xi));
+  const float contrast = d.value * (1.f / 255.f) + t * 0.5f;
   if (std::abs(contrast) * static_cast<float>(layers) < contrast_threshold) return false;
-  const float v2 = img.at(r, c) * 2.f;
-  const float dxx = (img.at(r, c + 1) + img.at(r, c - 1) - v2) * second_deriv_scale;
-  const float dyy = (img.at(r + 1, c) + img.at(r - 1, c) - v2) * second_deriv_scale;
-  const float dxy = (img.at(r + 1, c + 1) - img.at(r + 1, c - 1) - img.at(r - 1, c + 1) +
-                     img.at(r - 1, c - 1)) * cross_deriv_scale;
-  const float tr = dxx + dyy;
-  const float det = dxx * dyy - dxy * dxy;
+  const float tr = d.dxx + d.dyy;
+  const float det = d.dxx * d.dyy - d.dxy * d.dxy;
   if (det <= 0 || tr * tr * edge_threshold >= (edge_threshold + 1) * (edge_threshold + 1) * det) return false;
   kpt.pt.x = (static_cast<float>(c) + xc) * static_cast<float>(1 << octave);
   kpt.pt.y = (static_cast<float>(r) + xr) * static_cast<float>(1 << octave);
@@ -215,13 +220,6 @@ void describe(const cv::Mat& img, cv::Point2f ptf, float ori, float scl, std::ui
   sin_t /= hist_width;
   const int len = (2 * radius + 1) * (2 * radius + 1);
   s.resize(len);
-  float* dx = s.dx.data();
-  float* dy = s.dy.data();
-  float* w = s.w.data();
-  float* angle = s.angle.data();
-  float* mag = s.mag.data();
-  float* rbins = s.rbins.data();
-  float* cbins = s.cbins.data();
   std::array<float, (d + 2) * (d + 2) * (n + 2)> hist{};
   // A sample counts if its cell coordinates fall in (-1, d) (it votes into a cell of the
   // descriptor): |rotated offset| < (d + 1) / 2 on both axes. Each is linear in j along a row,
@@ -256,22 +254,20 @@ void describe(const cv::Mat& img, cv::Point2f ptf, float ori, float scl, std::ui
       const float cbin = c_rot + d / 2 - 0.5f;
       const int c = pt.x + j;
       if (rbin > -1 && rbin < d && cbin > -1 && cbin < d) {
-        dx[k] = row[c + 1] - row[c - 1];
-        dy[k] = up[c] - down[c];
-        rbins[k] = rbin;
-        cbins[k] = cbin;
-        w[k] = (c_rot * c_rot + r_rot * r_rot) * exp_scale;
+        s.dx[k] = row[c + 1] - row[c - 1];
+        s.dy[k] = up[c] - down[c];
+        s.rbins[k] = rbin;
+        s.cbins[k] = cbin;
+        s.w[k] = (c_rot * c_rot + r_rot * r_rot) * exp_scale;
         ++k;
       }
     }
   }
-  cv::hal::fastAtan2(dy, dx, angle, k, true);
-  cv::hal::magnitude32f(dx, dy, mag, k);
-  cv::hal::exp32f(w, w, k);
+  s.polar(k);
   for (int q = 0; q < k; ++q) {
-    float rbin = rbins[q], cbin = cbins[q];
-    float obin = (angle[q] - ori) * bins_per_rad;
-    const float m = mag[q] * w[q];
+    float rbin = s.rbins[q], cbin = s.cbins[q];
+    float obin = (s.angle[q] - ori) * bins_per_rad;
+    const float m = s.mag[q] * s.w[q];
     const int r0 = cvFloor(rbin);
     const int c0 = cvFloor(cbin);
     int o0 = cvFloor(obin);
