@@ -46,9 +46,11 @@ struct Scratch {
 
 // The orientation histogram of the gradients around `pt` in `img` (Lowe section 5): the
 // gradients (central differences) within `radius`, weighted by their magnitude and a Gaussian of
-// `sigma`, in `bins` bins, then smoothed circularly by (1 4 6 4 1) / 16. Returns the highest bin.
-float orientation_histogram(const cv::Mat& img, cv::Point pt, int radius, float sigma, float* hist, int bins,
-                            Scratch& s) {
+// `sigma`, in kOrientationBins bins, then smoothed circularly by (1 4 6 4 1) / 16. Returns the
+// highest bin.
+float orientation_histogram(const cv::Mat& img, cv::Point pt, int radius, float sigma,
+                            std::array<float, kOrientationBins>& hist, Scratch& s) {
+  constexpr int bins = kOrientationBins;
   const int len = (2 * radius + 1) * (2 * radius + 1);
   const float weight_scale = -1.f / (2.f * sigma * sigma);
   s.resize(len);
@@ -70,7 +72,6 @@ float orientation_histogram(const cv::Mat& img, cv::Point pt, int radius, float 
   }
   s.polar(k);
   std::array<float, kOrientationBins + 4> raw{};
-  CV_Assert(bins == kOrientationBins);
   float* h = raw.data() + 2;
   for (int q = 0; q < k; ++q) {
     int bin = cvRound((static_cast<float>(bins) / 360.f) * s.angle[q]);
@@ -85,7 +86,7 @@ float orientation_histogram(const cv::Mat& img, cv::Point pt, int radius, float 
   for (int i = 0; i < bins; ++i) {
     hist[i] = (h[i - 2] + h[i + 2]) * (1.f / 16.f) + (h[i - 1] + h[i + 1]) * (4.f / 16.f) + h[i] * (6.f / 16.f);
   }
-  return *std::max_element(hist, hist + bins);
+  return *std::max_element(hist.begin(), hist.end());
 }
 
 // Layer i of an octave's difference of Gaussians, G_(i+1) - G_i, evaluated where it is read (the
@@ -380,7 +381,7 @@ std::vector<cv::KeyPoint> SiftScaleSpace::keypoints(double contrast_threshold, d
   }
   std::vector<std::vector<cv::KeyPoint>> found(bands.size());
   cv::parallel_for_(cv::Range(0, static_cast<int>(bands.size())), [&](const cv::Range& range) {
-    std::vector<float> hist(kOrientationBins);
+    std::array<float, kOrientationBins> hist;
     std::vector<std::uint8_t> candidate;
     Scratch scratch;
     for (int b = range.start; b < range.end; ++b) {
@@ -433,7 +434,7 @@ std::vector<cv::KeyPoint> SiftScaleSpace::keypoints(double contrast_threshold, d
           const float scl_octave = kpt.size * 0.5f / static_cast<float>(1 << o);
           const float highest = orientation_histogram(gauss_[static_cast<std::size_t>(o * per + layer)],
                                                       cv::Point(c1, r1), cvRound(kOrientationRadius * scl_octave),
-                                                      kOrientationSigma * scl_octave, hist.data(), kOrientationBins, scratch);
+                                                      kOrientationSigma * scl_octave, hist, scratch);
           const float peak = highest * kOrientationPeak;
           constexpr int n = kOrientationBins;
           for (int j = 0; j < n; ++j) {
