@@ -85,6 +85,9 @@ void add_options(CLI::App& app, Cli& c) {
       ->group(lsm)->check(tool::non_negative_up_to(100))->capture_default_str();
   app.add_option("--bend-shrink-ratio", p.bend_shrink_ratio, "... of the bent patch's bend")
       ->group(lsm)->check(tool::finite_in(0, 1))->capture_default_str();
+  app.add_option("--max-reprojection-px", p.max_reprojection_px,
+                 "Refused when the views' free matches lie farther than this from the point's projection, RMS (0: no check)")
+      ->group(lsm)->check(tool::non_negative_up_to(100))->capture_default_str();
   app.add_option("--max-obliquity-deg", p.max_obliquity_deg, "Refused when the reference sees the patch more obliquely than this")
       ->group(lsm)->check(tool::finite_in(1, 90))->capture_default_str();
 }
@@ -193,13 +196,15 @@ void report(const DensifyResult& result, const DensifyInputs& in) {
   const PointCloud& cloud = result.cloud;
   const PointProperty* sigma = cloud.find("sigma_mm");
   const PointProperty* views = cloud.find("views");
-  std::vector<double> s = sigma->values, v = views->values;
+  const PointProperty* reprojection = cloud.find("reprojection_px");
+  std::vector<double> s = sigma->values, v = views->values, e = reprojection->values;
   auto median = [](std::vector<double> x) {
     std::nth_element(x.begin(), x.begin() + static_cast<std::ptrdiff_t>(x.size() / 2), x.end());
     return x[x.size() / 2];
   };
   log::info(std::to_string(cloud.points_mm.size()) + " points; median sigma along the ray " + format_double(median(s)) + " " +
-            cloud.units + ", median views " + format_double(median(v)) + "; " + std::to_string(result.free_space_removed) +
+            cloud.units + ", median views " + format_double(median(v)) + ", median reprojection error " +
+            format_double(median(e)) + " px; " + std::to_string(result.free_space_removed) +
             " removed by the free-space check");
 }
 

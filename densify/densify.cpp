@@ -37,6 +37,7 @@ struct DensePoint : SurfaceSample {
   int views;
   int ref;
   double correlation;
+  double reprojection_px;
 };
 
 // The plane n . X = 1 in the frame of the camera (R, t) through world point P with world normal N:
@@ -75,6 +76,11 @@ cv::Mat marker_mask(const std::vector<const Observation*>& obs, int width, int h
   }
   return mask;
 }
+
+// A value as a Float32 property holds it (write_ply refuses a value its type cannot store). Not
+// inlined: GCC 12.2 at -O3 vectorised the round trip of two adjacent fields (a point's correlation
+// and reprojection error) into one that kept the doubles, and write_ply refused them.
+[[gnu::noinline]] double f32(double v) { return static_cast<double>(static_cast<float>(v)); }
 
 double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b)) * 180 / M_PI;
@@ -370,6 +376,7 @@ DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Pr
         dp.views = static_cast<int>(r.views.size()) + 1;
         dp.ref = static_cast<int>(ref);
         dp.correlation = r.correlation;
+        dp.reprojection_px = r.reprojection_px;
         out->points.push_back(std::move(dp));
         propose(cand.cell, r.plane, r.correlation);
       }
@@ -449,15 +456,13 @@ DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Pr
   cloud.add_property("scalar_views", PlyScalar::UInt8);
   cloud.add_property("scalar_ref_image", PlyScalar::UInt16);
   cloud.add_property("scalar_correlation", PlyScalar::Float32);
+  cloud.add_property("scalar_reprojection_px", PlyScalar::Float32);
   for (auto& p : cloud.properties) p.values.reserve(points.size());
   for (const DensePoint& p : points) {
     cloud.points_mm.push_back(p.xyz);
-    // (Float32 properties hold the value rounded to float: write_ply refuses a value its type
-    // cannot store.)
-    auto f32 = [](double v) { return static_cast<double>(static_cast<float>(v)); };
-    const double vals[7] = {f32(p.normal.x()), f32(p.normal.y()), f32(p.normal.z()), f32(p.sigma), static_cast<double>(p.views),
-                            static_cast<double>(p.ref), f32(p.correlation)};
-    for (std::size_t k = 0; k < 7; ++k) cloud.properties[k].values.push_back(vals[k]);
+    const double vals[8] = {f32(p.normal.x()), f32(p.normal.y()), f32(p.normal.z()), f32(p.sigma), static_cast<double>(p.views),
+                            static_cast<double>(p.ref), f32(p.correlation), f32(p.reprojection_px)};
+    for (std::size_t k = 0; k < 8; ++k) cloud.properties[k].values.push_back(vals[k]);
   }
   return result;
 }

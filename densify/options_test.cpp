@@ -119,6 +119,17 @@ TEST(DensifyOptions, MinCorrelation) {
   EXPECT_LT(min_of(baseline(), "correlation"), 0.99);
 }
 
+TEST(DensifyOptions, MaxReprojectionPx) {
+  // The baseline's points reproject within a few tenths of a pixel; a limit below its largest
+  // refuses the rest.
+  const double largest = max_of(baseline(), "reprojection_px");
+  ASSERT_GT(largest, 0.02);
+  const auto c = run({"--max-reprojection-px", "0.02"}, "reproj");
+  ASSERT_FALSE(c.points_mm.empty());
+  EXPECT_LE(max_of(c, "reprojection_px"), 0.02);
+  EXPECT_LT(c.points_mm.size(), baseline().points_mm.size());
+}
+
 TEST(DensifyOptions, WindowShapeAndModel) {
   for (const auto& [opt, value] : std::vector<std::pair<std::string, std::string>>{
            {"--half-window-px", "6"}, {"--window-stride-px", "1"}, {"--planar", ""}, {"--max-obliquity-deg", "45"},

@@ -23,6 +23,7 @@ const char* to_string(PatchFailure f) {
     case PatchFailure::Bent: return "bent across a crease";
     case PatchFailure::Correlation: return "correlation too low";
     case PatchFailure::Views: return "too few views";
+    case PatchFailure::Reprojection: return "free matches off the projection";
     case PatchFailure::Count: break;
   }
   return "?";
@@ -31,6 +32,10 @@ const char* to_string(PatchFailure f) {
 namespace {
 
 constexpr int kGridPoints = 9;
+// The free match of the reprojection error (PatchMatcher::measure): Gauss-Newton iterations and
+// the step below which it has converged.
+constexpr int kFreeShiftIterations = 6;
+constexpr double kFreeShiftConvergedPx = 1e-3;
 
 // Geometric parameters: n (3), then with `quadratic` the curvature terms c (3).
 constexpr int kMaxGeo = 6;
@@ -470,6 +475,47 @@ PatchFailure PatchMatcher::measure(const std::vector<PatchView>& views, int ref,
     }
     out->bend_deg = bend;
   }
+
+  // The reprojection error. The geometric constraint puts each view's window where the point
+  // projects, so the fit itself leaves no residual in the image. The free match is the window's
+  // own position in that view: a 2D shift s of the fitted map (its shape held; the brightness
+  // terms a, b from the fit as start values) minimising sum (f - a - b g(u(d) + s))^2 by
+  // Gauss-Newton on (s, a, b), as match's least-squares matching measures a track's observation.
+  // |s| is that observation's distance from the point's projection; the reference's observation
+  // is its pixel, on whose ray the point lies (0). The RMS over all of them is the point's
+  // reprojection error as a track's is defined (a point triangulated from the same observations
+  // by least squares would have a smaller one).
+  double shift_ss = 0;
+  for (std::size_t v = 0; v < active.size(); ++v) {
+    const cv::Mat& g = views[active[v]].grey;
+    Eigen::Vector2d shift = Eigen::Vector2d::Zero();
+    double av = a[v], bv_ = b[v];
+    for (int it = 0; it < kFreeShiftIterations; ++it) {
+      Eigen::Matrix4d N = Eigen::Matrix4d::Zero();
+      Eigen::Vector4d rhs = Eigen::Vector4d::Zero();
+      bool ok = true;
+      for (std::size_t q = 0; q < n_pix && ok; ++q) {
+        const Eigen::Map<const Eigen::Matrix<double, 6, 1>> bq(basis_[q].data());
+        double val, gx, gy;
+        ok = match::sample_cubic(g, maps[v].C.row(0) * bq + shift.x(), maps[v].C.row(1) * bq + shift.y(), val, gx, gy);
+        const Eigen::Vector4d J(bv_ * gx, bv_ * gy, 1, val);
+        const double e = fv[q] - av - bv_ * val;
+        N.noalias() += J * J.transpose();
+        rhs.noalias() += J * e;
+      }
+      if (!ok) break;  // the shifted window left the photo: keep the last shift
+      const Eigen::Vector4d step = N.ldlt().solve(rhs);
+      if (!step.allFinite()) break;
+      shift += step.head<2>();
+      av += step(2);
+      bv_ += step(3);
+      if (step.head<2>().norm() < kFreeShiftConvergedPx) break;
+    }
+    shift_ss += shift.squaredNorm();
+  }
+  // RMS over all the point's observations, the reference's (0) included.
+  out->reprojection_px = std::sqrt(shift_ss / static_cast<double>(active.size() + 1));
+  if (o.max_reprojection_px > 0 && !(out->reprojection_px <= o.max_reprojection_px)) return PatchFailure::Reprojection;
 
   out->plane = n;
   out->point_ref = ray0 * z;

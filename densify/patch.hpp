@@ -72,10 +72,13 @@ struct PatchOptions {
   // then its point is kept. 0: no second window.
   int bend_check_half_window_px = 5;
   double bend_shrink_ratio = 0.8;
+  // Refused when the point's reprojection error (PatchResult::reprojection_px: the views' free
+  // matches against its projection) is above this, px (0: no check).
+  double max_reprojection_px = 0;
 };
 
 // Why a patch was refused (for the summary).
-enum class PatchFailure { None, Behind, Border, Singular, NotConverged, Shift, Oblique, Bent, Correlation, Views, Count };
+enum class PatchFailure { None, Behind, Border, Singular, NotConverged, Shift, Oblique, Bent, Correlation, Views, Reprojection, Count };
 const char* to_string(PatchFailure f);
 
 struct PatchResult {
@@ -90,6 +93,11 @@ struct PatchResult {
   std::vector<Eigen::Vector3d> bend_planes;
   // The largest angle between the normals of the window's quadrants (with the curvature terms).
   double bend_deg = 0;
+  // The point's reprojection error, px: the RMS over its observations of the distance from where
+  // the point projects to where the reference window matches each view freely (a 2D shift of
+  // the fitted window, patch.cpp); the reference's own observation is its pixel, whose ray the
+  // point lies on (0).
+  double reprojection_px = 0;
 };
 
 // The matcher for one reference photo: its camera, and the quadratic interpolation of the window.

@@ -10,6 +10,7 @@
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
 
 #include "densify/test_views.hpp"
 #include "geometry/camera_model.hpp"
@@ -244,6 +245,50 @@ TEST(PatchMatcher, RefusesAWindowAcrossACreaseAndProposesItsTwoFaces) {
   ASSERT_EQ(m.measure(s.views, 0, on_top, facing_plane(s.camera, on_top, true_depth(s, rim, on_top)), {1, 2, 3}, &r),
             PatchFailure::None);
   EXPECT_LT(ray_error(s, rim, on_top, r), 0.005);
+}
+
+TEST(PatchMatcher, ReprojectionErrorIsTheViewsFreeMatchesOffTheProjection) {
+  // Exact renderings: every view's window matches freely where the point projects. Then view 1's
+  // photo is moved by 0.5 px across its epipolar line (a pose 0.5 px off), which no point on the
+  // reference ray can follow: the free match in that view lands about 0.5 px from the projection.
+  const Surface plane = [](double x, double y) { return 0.2 * x - 0.1 * y; };
+  const Scene s = render(plane, kRing);
+  const PatchMatcher m(s.camera, {});
+  const Eigen::Vector2i centre(240, 180);
+  const double z = true_depth(s, plane, centre);
+  PatchResult r;
+  ASSERT_EQ(m.measure(s.views, 0, centre, facing_plane(s.camera, centre, z), {1, 2, 3}, &r), PatchFailure::None);
+  EXPECT_LT(r.reprojection_px, 0.03);
+
+  // The epipolar line's direction in view 1 at the point: the projections of two depths.
+  const auto project1 = [&](double depth) {
+    const auto xy = geometry::undistort(s.camera, centre.cast<double>());
+    const Eigen::Vector3d X = s.views[0].rotation.transpose() * (Eigen::Vector3d(xy->x(), xy->y(), 1) * depth - s.views[0].translation_mm);
+    const Eigen::Vector3d Xc = s.views[1].rotation * X + s.views[1].translation_mm;
+    double u, v;
+    geometry::distort_to_pixel(geometry::shape_of(s.camera), s.camera.params.data(), Xc.x() / Xc.z(), Xc.y() / Xc.z(), &u, &v);
+    return Eigen::Vector2d(u, v);
+  };
+  const Eigen::Vector2d along = (project1(z + 1) - project1(z - 1)).normalized();
+  const Eigen::Vector2d across(-along.y(), along.x());
+  std::vector<PatchView> moved = s.views;
+  moved[1].grey = cv::Mat();  // (the copy shares the photo's pixels: warp into new ones)
+  const cv::Mat shift = (cv::Mat_<double>(2, 3) << 1, 0, 0.5 * across.x(), 0, 1, 0.5 * across.y());
+  cv::warpAffine(s.views[1].grey, moved[1].grey, shift, s.views[1].grey.size(), cv::INTER_CUBIC, cv::BORDER_REPLICATE);
+  ASSERT_EQ(m.measure(moved, 0, centre, facing_plane(s.camera, centre, z), {1, 2, 3}, &r), PatchFailure::None);
+  // Still matched in all three views (a 1 px move drops view 1 by its correlation). RMS over 4
+  // observations of which one is ~0.5 px off: ~0.25 px.
+  ASSERT_EQ(r.views.size(), 3u);
+  EXPECT_GT(r.reprojection_px, 0.2);
+  EXPECT_LT(r.reprojection_px, 0.3);
+  std::cerr << "view 1 moved 0.5 px across its epipolar line: reprojection error " << r.reprojection_px << " px\n";
+  // --max-reprojection-px refuses it, and keeps the exact views' point.
+  PatchOptions strict;
+  strict.max_reprojection_px = 0.2;
+  EXPECT_EQ(PatchMatcher(s.camera, strict).measure(moved, 0, centre, facing_plane(s.camera, centre, z), {1, 2, 3}, &r),
+            PatchFailure::Reprojection);
+  EXPECT_EQ(PatchMatcher(s.camera, strict).measure(s.views, 0, centre, facing_plane(s.camera, centre, z), {1, 2, 3}, &r),
+            PatchFailure::None);
 }
 
 }  // namespace
