@@ -34,8 +34,8 @@ namespace {
 constexpr int kGridPoints = 9;
 // The free match of the reprojection error (PatchMatcher::measure): Gauss-Newton iterations and
 // the step below which it has converged.
-constexpr int kFreeShiftIterations = 6;
-constexpr double kFreeShiftConvergedPx = 1e-3;
+constexpr int kFreeShiftIterations = 4;
+constexpr double kFreeShiftConvergedPx = 0.005;
 
 // Geometric parameters: n (3), then with `quadratic` the curvature terms c (3).
 constexpr int kMaxGeo = 6;
