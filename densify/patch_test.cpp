@@ -119,12 +119,18 @@ double true_depth(const Scene& s, const Surface& h, const Eigen::Vector2i& centr
 
 const std::vector<std::pair<double, double>> kRing = {{0, 60}, {20, 55}, {-20, 55}, {0, 45}};
 
+// The plane z = 0.2 x - 0.1 y seen by kRing, and the reference pixel the tests measure at.
+struct TiltedPlane {
+  Surface plane = [](double x, double y) { return 0.2 * x - 0.1 * y; };
+  Scene s = render(plane, kRing);
+  Eigen::Vector2i centre{240, 180};
+  double z = true_depth(s, plane, centre);
+};
+
 TEST(PatchMatcher, FindsATiltedPlaneToMicrometres) {
-  const Surface plane = [](double x, double y) { return 0.2 * x - 0.1 * y; };
-  const Scene s = render(plane, kRing);
+  const TiltedPlane t;
+  const auto& [plane, s, centre, z] = t;
   const PatchMatcher m(s.camera, {});
-  const Eigen::Vector2i centre(240, 180);
-  const double z = true_depth(s, plane, centre);
   PatchResult r;
   // Started 0.5 mm off in depth, with the plane facing the camera (about 25 degrees off).
   ASSERT_EQ(m.measure(s.views, 0, centre, facing_plane(s.camera, centre, z + 0.5), {1, 2, 3}, &r), PatchFailure::None);
@@ -251,11 +257,9 @@ TEST(PatchMatcher, ReprojectionErrorIsTheViewsFreeMatchesOffTheProjection) {
   // Exact renderings: every view's window matches freely where the point projects. Then view 1's
   // photo is moved by 0.5 px across its epipolar line (a pose 0.5 px off), which no point on the
   // reference ray can follow: the free match in that view lands about 0.5 px from the projection.
-  const Surface plane = [](double x, double y) { return 0.2 * x - 0.1 * y; };
-  const Scene s = render(plane, kRing);
+  const TiltedPlane t;
+  const auto& [plane, s, centre, z] = t;
   const PatchMatcher m(s.camera, {});
-  const Eigen::Vector2i centre(240, 180);
-  const double z = true_depth(s, plane, centre);
   PatchResult r;
   ASSERT_EQ(m.measure(s.views, 0, centre, facing_plane(s.camera, centre, z), {1, 2, 3}, &r), PatchFailure::None);
   EXPECT_LT(r.reprojection_px, 0.03);
