@@ -395,6 +395,8 @@ PatchFailure PatchMatcher::measure(const std::vector<PatchView>& views, int ref,
       active = kept;
       start = kept_start;
       maps = kept_maps;
+      a = ka;  // (the kept views' brightness terms: the reprojection error's free match starts from them)
+      b = kb;
       break;
     }
     active = kept;
@@ -498,6 +500,7 @@ PatchFailure PatchMatcher::measure(const std::vector<PatchView>& views, int ref,
         const Eigen::Map<const Eigen::Matrix<double, 6, 1>> bq(basis_[q].data());
         double val, gx, gy;
         ok = match::sample_cubic(g, maps[v].C.row(0) * bq + shift.x(), maps[v].C.row(1) * bq + shift.y(), val, gx, gy);
+        if (!ok) break;
         const Eigen::Vector4d J(bv_ * gx, bv_ * gy, 1, val);
         const double e = fv[q] - av - bv_ * val;
         N.noalias() += J * J.transpose();
