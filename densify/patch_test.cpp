@@ -129,7 +129,10 @@ struct TiltedPlane {
 
 TEST(PatchMatcher, FindsATiltedPlaneToMicrometres) {
   const TiltedPlane t;
-  const auto& [plane, s, centre, z] = t;
+  const Surface& plane = t.plane;
+  const Scene& s = t.s;
+  const Eigen::Vector2i& centre = t.centre;
+  const double z = t.z;
   const PatchMatcher m(s.camera, {});
   PatchResult r;
   // Started 0.5 mm off in depth, with the plane facing the camera (about 25 degrees off).
@@ -258,7 +261,10 @@ TEST(PatchMatcher, ReprojectionErrorIsTheViewsFreeMatchesOffTheProjection) {
   // photo is moved by 0.5 px across its epipolar line (a pose 0.5 px off), which no point on the
   // reference ray can follow: the free match in that view lands about 0.5 px from the projection.
   const TiltedPlane t;
-  const auto& [plane, s, centre, z] = t;
+  // (References, not a structured binding: clang 14's lambdas cannot capture one.)
+  const Scene& s = t.s;
+  const Eigen::Vector2i& centre = t.centre;
+  const double z = t.z;
   const PatchMatcher m(s.camera, {});
   PatchResult r;
   ASSERT_EQ(m.measure(s.views, 0, centre, facing_plane(s.camera, centre, z), {1, 2, 3}, &r), PatchFailure::None);
