@@ -55,6 +55,11 @@ int main(int argc, char** argv) {
             image_dir.empty() ? pose->image : (fs::path(image_dir) / fs::path(pose->image).filename()).string();
         const cv::Mat photo = cv::imread(photo_path, cv::IMREAD_COLOR);
         if (photo.empty()) throw InputError(photo_path, 0, "cannot read the photo");
+        if (photo.cols != cam.width_px || photo.rows != cam.height_px) {
+          throw InputError(photo_path, 0,
+                           "the photo is " + std::to_string(photo.cols) + " x " + std::to_string(photo.rows) + " px, the camera " +
+                               std::to_string(cam.width_px) + " x " + std::to_string(cam.height_px) + ": another camera's photo?");
+        }
         const PointCloud cloud = read_ply(*tool::open_input(cloud_path), tool::source_name(cloud_path));
         const PointProperty* nx = cloud.find("nx");
         const PointProperty* ny = cloud.find("ny");
@@ -93,11 +98,17 @@ int main(int argc, char** argv) {
           }
           drawn += any ? 1 : 0;
         }
+        if (drawn == 0) {
+          throw InputError(tool::source_name(cloud_path), 0,
+                           "no point lies in front of " + image + "'s camera and inside the photo: a cloud of another run?");
+        }
         cv::Mat both;
         cv::hconcat(photo, picture, both);
-        const std::string tmp = output + ".tmp.png";
-        if (!cv::imwrite(tmp, both)) throw InputError(output, 0, "cannot write the picture");
-        fs::rename(tmp, output);
+        std::vector<unsigned char> png;
+        if (!cv::imencode(".png", both, png)) throw InputError(output, 0, "cannot encode the picture");
+        tool::OutputFile out(output);
+        out.stream().write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
+        out.commit();
         log::info(std::to_string(drawn) + " of " + std::to_string(cloud.points_mm.size()) + " points drawn from " + image);
       });
 }
