@@ -35,7 +35,7 @@ namespace photomill::densify {
 struct DensifyOptions {
   PatchOptions patch;
   // One point per cell of this many pixels in the reference photo.
-  double spacing_px = 2;
+  double spacing_px = 1.8;
   // Views matched with each reference: the nearest ones by the angle between their rays at the
   // scene's centre, from min_angle_deg (a shorter baseline measures depth poorly) to
   // max_angle_deg (a wider one sees another face of the texture).

@@ -49,7 +49,7 @@ struct PatchOptions {
   bool quadratic = true;
   int max_iterations = 20;
   // Converged when the window centre moves by less than this in every view in one iteration.
-  double converged_px = 0.005;
+  double converged_px = 0.01;
   // A view whose aligned window correlates below this is dropped; the patch needs
   // min_views - 1 views besides the reference.
   double min_correlation = 0.95;
