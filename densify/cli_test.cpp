@@ -80,7 +80,7 @@ TEST(DensifyCli, MeasuresThePartToHundredthsOfAMillimetre) {
   // Issue 28's bounds for the whole demo (median 0.015, RMS 0.03 mm), here on a patch of it.
   EXPECT_LT(median, 0.015);
   EXPECT_LT(rms, 0.03);
-  // 40 x 30 mm at ~5 px per mm and a point per 2 px: up to ~7 points per mm^2 from part_00 alone;
+  // 40 x 30 mm at ~5 px per mm and a point per 1.8 px: up to ~8 points per mm^2 from part_00 alone;
   // with these five photos about 4 pass the correlation of 0.95 in 3 of them.
   EXPECT_GT(d.size(), 4000u);
   // Normals face the cameras (up, on a part seen from above).
