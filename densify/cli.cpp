@@ -47,6 +47,9 @@ void add_options(CLI::App& app, Cli& c) {
       ->group(grow)->check(tool::finite_in(1, 16))->capture_default_str();
   app.add_option("--marker-margin", o.marker_margin, "The masked quiet zone around a marker, in marker sides on each side")
       ->group(grow)->check(tool::finite_in(0, 5))->capture_default_str();
+  app.add_flag("!--no-marker-corners", o.marker_corners,
+               "Leave out the sparse cloud's marker corners, which are otherwise written with the dense points (marker_corner 1) to hold the fitted surface across the masked markers")
+      ->group(grow);
   app.add_option("--box-margin", o.box_margin, "Without --box: the sparse cloud's box grown by this share of its size on each side")
       ->group(grow)->check(tool::finite_in(0, 10))->capture_default_str();
   app.add_option("--free-space-min-violations", o.free_space_min_violations,
@@ -205,7 +208,9 @@ void report(const DensifyResult& result, const DensifyInputs& in) {
   log::info(std::to_string(cloud.points_mm.size()) + " points; median sigma along the ray " + format_double(median(s)) + " " +
             cloud.units + ", median views " + format_double(median(v)) + ", median reprojection error " +
             format_double(median(e)) + " px; " + std::to_string(result.free_space_removed) +
-            " removed by the free-space check");
+            " removed by the free-space check; " + std::to_string(result.markers_projected) +
+            " markers masked in photos where they were not detected (projected from the others); " +
+            std::to_string(result.marker_corners) + " marker corners of the sparse cloud written with them");
 }
 
 }  // namespace photomill::densify

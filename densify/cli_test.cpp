@@ -63,7 +63,7 @@ TEST(DensifyCli, MeasuresThePartToHundredthsOfAMillimetre) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_TRUE(r.out.empty());
   const PointCloud cloud = read_cloud(job.path("dense.ply"));
-  for (const char* p : {"nx", "ny", "nz", "sigma_mm", "views", "ref_image", "correlation", "reprojection_px"}) {
+  for (const char* p : {"nx", "ny", "nz", "sigma_mm", "views", "ref_image", "correlation", "reprojection_px", "marker_corner"}) {
     EXPECT_NE(cloud.find(p), nullptr) << p;
   }
   std::ifstream scene_in(kDemo / "scene.txt");

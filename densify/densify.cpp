@@ -5,6 +5,7 @@
 #include <cmath>
 #include <map>
 #include <queue>
+#include <set>
 
 #include <opencv2/imgproc.hpp>
 
@@ -13,6 +14,9 @@
 
 namespace photomill::densify {
 namespace {
+
+// The least angle between two rays of a marker corner for it to be placed in space (degrees).
+constexpr double kMarkerMinAngleDeg = 2;
 
 enum class CellState : unsigned char { Empty, Done, Occupied };
 
@@ -38,6 +42,7 @@ struct DensePoint : SurfaceSample {
   int ref;
   double correlation;
   double reprojection_px;
+  bool marker_corner = false;
 };
 
 // The plane n . X = 1 in the frame of the camera (R, t) through world point P with world normal N:
@@ -54,27 +59,136 @@ bool in_box(const std::array<double, 6>& b, const Eigen::Vector3d& p) {
   return p.x() >= b[0] && p.y() >= b[1] && p.z() >= b[2] && p.x() <= b[3] && p.y() <= b[4] && p.z() <= b[5];
 }
 
-// Where the marker masks of each photo are 0: the quad of each marker's four corners, grown by
-// `margin` of its side about its centre.
-cv::Mat marker_mask(const std::vector<const Observation*>& obs, int width, int height, double margin) {
-  cv::Mat mask(height, width, CV_8U, cv::Scalar(255));
-  std::map<PointId, std::array<const Observation*, 4>> quads;
+// A marker's four corners in one photo (pixels, corner order).
+using Quad = std::array<Eigen::Vector2d, 4>;
+
+// The markers each photo's observations show whole: marker id -> its corners.
+std::map<PointId, Quad> observed_quads(const std::vector<const Observation*>& obs) {
+  std::map<PointId, std::array<const Observation*, 4>> corners;
   for (const Observation* o : obs) {
     if (o->point_id < 0 || o->point_id >= kFirstClickedId) continue;
-    quads[o->point_id / 4][static_cast<std::size_t>(o->point_id % 4)] = o;
+    corners[o->point_id / 4][static_cast<std::size_t>(o->point_id % 4)] = o;
   }
-  for (const auto& [id, q] : quads) {
+  std::map<PointId, Quad> quads;
+  for (const auto& [id, q] : corners) {
     if (!q[0] || !q[1] || !q[2] || !q[3]) continue;
-    Eigen::Vector2d c = Eigen::Vector2d::Zero();
-    for (const Observation* o : q) c += Eigen::Vector2d(o->u_px, o->v_px) / 4;
+    Quad& out = quads[id];
+    for (std::size_t k = 0; k < 4; ++k) out[k] = Eigen::Vector2d(q[k]->u_px, q[k]->v_px);
+  }
+  return quads;
+}
+
+// Where the marker masks of a photo are 0: each quad grown by `margin` of its side about its
+// centre.
+cv::Mat marker_mask(const std::vector<Quad>& quads, int width, int height, double margin) {
+  cv::Mat mask(height, width, CV_8U, cv::Scalar(255));
+  for (const Quad& q : quads) {
+    const Eigen::Vector2d c = (q[0] + q[1] + q[2] + q[3]) / 4;
     std::vector<cv::Point> poly;
-    for (const Observation* o : q) {
-      const Eigen::Vector2d p = c + (Eigen::Vector2d(o->u_px, o->v_px) - c) * (1 + 2 * margin);
+    for (const Eigen::Vector2d& corner : q) {
+      const Eigen::Vector2d p = c + (corner - c) * (1 + 2 * margin);
       poly.emplace_back(static_cast<int>(std::lround(p.x())), static_cast<int>(std::lround(p.y())));
     }
     cv::fillConvexPoly(mask, poly, cv::Scalar(0));
   }
   return mask;
+}
+
+// The marker corners in space, from their observations in the photos: the point nearest to all
+// of a corner's rays in the least-squares sense, X = (sum P_i)^-1 sum P_i c_i with
+// P_i = I - d_i d_i^T (d_i the unit ray from centre c_i; Hartley & Zisserman 2003, 12.2's
+// mid-point method generalised to n rays). A corner seen in fewer than two photos, or whose rays
+// meet at less than min_angle_deg, is left out.
+std::map<PointId, Eigen::Vector3d> marker_corners_in_space(const std::vector<std::vector<const Observation*>>& obs_of,
+                                                            const std::vector<PatchView>& views,
+                                                            const geometry::CameraModel& cam, double min_angle_deg) {
+  struct Rays {
+    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    std::vector<Eigen::Vector3d> dirs;
+  };
+  std::map<PointId, Rays> rays;
+  for (std::size_t i = 0; i < views.size(); ++i) {
+    const Eigen::Matrix3d Rt = views[i].rotation.transpose();
+    const Eigen::Vector3d c = -Rt * views[i].translation_mm;
+    for (const Observation* o : obs_of[i]) {
+      if (o->point_id < 0 || o->point_id >= kFirstClickedId) continue;
+      const auto xy = geometry::undistort(cam, Eigen::Vector2d(o->u_px, o->v_px));
+      if (!xy) continue;
+      const Eigen::Vector3d d = (Rt * Eigen::Vector3d(xy->x(), xy->y(), 1)).normalized();
+      const Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - d * d.transpose();
+      Rays& r = rays[o->point_id];
+      r.A += P;
+      r.b += P * c;
+      r.dirs.push_back(d);
+    }
+  }
+  std::map<PointId, Eigen::Vector3d> out;
+  const double cos_min = std::cos(min_angle_deg * M_PI / 180);
+  for (const auto& [id, r] : rays) {
+    bool wide = false;
+    for (std::size_t a = 0; a < r.dirs.size() && !wide; ++a) {
+      for (std::size_t b = a + 1; b < r.dirs.size() && !wide; ++b) wide = r.dirs[a].dot(r.dirs[b]) < cos_min;
+    }
+    if (wide) out[id] = r.A.ldlt().solve(r.b);
+  }
+  return out;
+}
+
+// The sparse cloud's marker corners (its coded targets' tracks) inside the box, as points of the dense cloud. The markers are
+// masked in every photo, so the dense points leave a hole at each; their corners, measured by
+// the bundle adjustment from detect's sub-pixel corners, hold the fitted surface across it.
+// Normal: the marker's plane (the cross product of its diagonals, Hartley & Zisserman 2003, 2.2)
+// when its four corners are there, else the direction to the cameras; turned to face the
+// cameras' mean centre. sigma_mm, views and reprojection_px come from the sparse cloud when it
+// has them; ref_image is the first photo that observed the corner.
+std::vector<DensePoint> marker_corner_points(const PointCloud& sparse, const std::array<double, 6>& box,
+                                             const std::vector<Eigen::Vector3d>& centres,
+                                             const std::vector<std::vector<const Observation*>>& obs_of) {
+  std::vector<DensePoint> out;
+  const PointProperty* track = sparse.find("track_id");
+  if (!track) return out;
+  const PointProperty* sigma = sparse.find("sigma_mm");
+  const PointProperty* views = sparse.find("views");
+  const PointProperty* reprojection = sparse.find("reproj_rms_px");
+  Eigen::Vector3d eye = Eigen::Vector3d::Zero();
+  for (const auto& c : centres) eye += c / static_cast<double>(centres.size());
+  std::map<PointId, Eigen::Vector3d> corner;
+  std::map<PointId, std::size_t> row;
+  for (std::size_t i = 0; i < sparse.points_mm.size(); ++i) {
+    const double id = track->values[i];
+    if (!(id >= 0 && id < kCodedIdLimit) || !sparse.points_mm[i].allFinite()) continue;
+    corner[static_cast<PointId>(id)] = sparse.points_mm[i];
+    row[static_cast<PointId>(id)] = i;
+  }
+  std::map<PointId, int> first_photo;
+  for (std::size_t v = 0; v < obs_of.size(); ++v) {
+    for (const Observation* o : obs_of[v]) {
+      if (corner.count(o->point_id) && !first_photo.count(o->point_id)) first_photo[o->point_id] = static_cast<int>(v);
+    }
+  }
+  for (const auto& [id, X] : corner) {
+    if (!in_box(box, X)) continue;
+    const PointId m = id / 4 * 4;
+    Eigen::Vector3d n = (eye - X).normalized();
+    if (corner.count(m) && corner.count(m + 1) && corner.count(m + 2) && corner.count(m + 3)) {
+      const Eigen::Vector3d plane = (corner[m + 2] - corner[m]).cross(corner[m + 3] - corner[m + 1]);
+      if (plane.norm() > 0) n = plane.dot(eye - X) >= 0 ? plane.normalized() : Eigen::Vector3d(-plane.normalized());
+    }
+    if (!n.allFinite()) continue;
+    const std::size_t r = row[id];
+    DensePoint p;
+    p.xyz = X;
+    p.normal = n;
+    p.sigma = sigma ? sigma->values[r] : 0;
+    p.views = views ? static_cast<int>(std::min(255.0, views->values[r])) : 0;
+    p.ref = first_photo.count(id) ? first_photo[id] : 0;
+    p.correlation = 1;
+    p.reprojection_px = reprojection ? reprojection->values[r] : 0;
+    p.marker_corner = true;
+    out.push_back(p);
+  }
+  return out;
 }
 
 // A value as a Float32 property holds it (write_ply refuses a value its type cannot store). Not
@@ -226,6 +340,42 @@ DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Pr
     }
   }
 
+  // The markers each photo shows, masked: those its observations show whole, and every other
+  // marker whose corners are known in space (seen in other photos) projected into it. A marker
+  // the detector missed in one photo (too oblique, blurred, partly hidden) would otherwise be
+  // measured there as surface: a printed square lying flat on the part, not the part.
+  std::vector<std::vector<Quad>> quads_of(n_views);
+  {
+    const auto corners = marker_corners_in_space(obs_of, views, cam, kMarkerMinAngleDeg);
+    std::set<PointId> markers;
+    for (const auto& [id, X] : corners) {
+      if (corners.count(id / 4 * 4) && corners.count(id / 4 * 4 + 1) && corners.count(id / 4 * 4 + 2) &&
+          corners.count(id / 4 * 4 + 3)) {
+        markers.insert(id / 4);
+      }
+    }
+    const double* k = cam.params.data();
+    const geometry::ModelShape shape = geometry::shape_of(cam);
+    for (std::size_t i = 0; i < n_views; ++i) {
+      std::map<PointId, Quad> quads = observed_quads(obs_of[i]);
+      for (PointId m : markers) {
+        if (quads.count(m)) continue;
+        Quad q;
+        bool in_front = true;
+        for (int c = 0; c < 4 && in_front; ++c) {
+          const Eigen::Vector3d Xc = views[i].rotation * corners.at(m * 4 + c) + views[i].translation_mm;
+          in_front = Xc.z() > 0;
+          if (in_front) geometry::distort_to_pixel(shape, k, Xc.x() / Xc.z(), Xc.y() / Xc.z(), &q[c].x(), &q[c].y());
+        }
+        if (in_front) {
+          quads[m] = q;
+          ++result.markers_projected;
+        }
+      }
+      for (const auto& [m, q] : quads) quads_of[i].push_back(q);
+    }
+  }
+
   const PatchMatcher matcher(cam, o.patch);
   const double s = o.spacing_px;
   const int threads = geometry::thread_count(o.threads);
@@ -253,7 +403,7 @@ DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Pr
       if (progress) progress("photo " + in.poses[ref].image + ": too few neighbour views, not a reference");
       continue;
     }
-    const cv::Mat mask = marker_mask(obs_of[ref], f.cols, f.rows, o.marker_margin);
+    const cv::Mat mask = marker_mask(quads_of[ref], f.cols, f.rows, o.marker_margin);
     const int gw = static_cast<int>(f.cols / s), gh = static_cast<int>(f.rows / s);
     std::vector<Cell> cells(static_cast<std::size_t>(gw) * gh);
     auto cell_centre = [&](int c) {
@@ -448,6 +598,12 @@ DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Pr
                      "surface has no texture (see the refusals above with -v)");
   }
 
+  if (o.marker_corners) {
+    const auto corners = marker_corner_points(in.sparse, result.box, centres, obs_of);
+    result.marker_corners = corners.size();
+    points.insert(points.end(), corners.begin(), corners.end());
+  }
+
   PointCloud& cloud = result.cloud;
   cloud.units = in.sparse.units;
   cloud.points_mm.reserve(points.size());
@@ -457,12 +613,14 @@ DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Pr
   cloud.add_property("scalar_ref_image", PlyScalar::UInt16);
   cloud.add_property("scalar_correlation", PlyScalar::Float32);
   cloud.add_property("scalar_reprojection_px", PlyScalar::Float32);
+  cloud.add_property("scalar_marker_corner", PlyScalar::UInt8);
   for (auto& p : cloud.properties) p.values.reserve(points.size());
   for (const DensePoint& p : points) {
     cloud.points_mm.push_back(p.xyz);
-    const double vals[8] = {f32(p.normal.x()), f32(p.normal.y()), f32(p.normal.z()), f32(p.sigma), static_cast<double>(p.views),
-                            static_cast<double>(p.ref), f32(p.correlation), f32(p.reprojection_px)};
-    for (std::size_t k = 0; k < 8; ++k) cloud.properties[k].values.push_back(vals[k]);
+    const double vals[9] = {f32(p.normal.x()), f32(p.normal.y()), f32(p.normal.z()), f32(p.sigma), static_cast<double>(p.views),
+                            static_cast<double>(p.ref), f32(p.correlation), f32(p.reprojection_px),
+                            p.marker_corner ? 1.0 : 0.0};
+    for (std::size_t k = 0; k < 9; ++k) cloud.properties[k].values.push_back(vals[k]);
   }
   return result;
 }

@@ -12,7 +12,8 @@
 //   cell is left to try. Cells already holding a point of an earlier reference are not measured
 //   again (their plane still grows), so each surface element is measured about once.
 //   Cells are grown tile by tile in parallel; a second pass carries growth across tile borders.
-//   Masks: markers with their quiet zones (detect's observations), the part box (or the sparse
+//   Masks: markers with their quiet zones (detect's observations; a marker missed in a photo
+//   projected into it from the others), the part box (or the sparse
 //   cloud's box), the photos' borders.
 #pragma once
 
@@ -46,7 +47,10 @@ struct DensifyOptions {
   int max_attempts = 2;
   // Marker masks: the marker's quad (from its four corners in the photo) grown by this fraction
   // of its side on every side (the quiet zone).
-  double marker_margin = 0.5;
+  double marker_margin = 0.34;
+  // The sparse cloud's marker corners inside the box are written with the dense points (flagged
+  // marker_corner): they hold the fitted surface across the masked markers.
+  bool marker_corners = true;
   // Points outside this box (XMIN, YMIN, ZMIN, XMAX, YMAX, ZMAX, world frame) are refused; by
   // default the sparse cloud's box grown by box_margin of its size on every side.
   std::optional<std::array<double, 6>> box;
@@ -73,6 +77,9 @@ struct DensifyInputs {
 
 // Marker corners have point id marker_id * 4 + corner; pick's clicked points start here.
 constexpr PointId kFirstClickedId = 100000;
+// The sparse cloud's tracks below this id are coded targets (marker corners, board corners),
+// the others natural features and clicked points (docs/formats.md, Tracks).
+constexpr PointId kCodedIdLimit = 4096;
 
 struct ReferenceStats {
   std::size_t seeds = 0;
@@ -87,11 +94,16 @@ struct ReferenceStats {
 
 struct DensifyResult {
   // Per point: x y z, nx ny nz (unit normal facing the reference camera), sigma_mm (along the
-  // reference ray), views (reference included), ref_image (index into the poses), correlation.
+  // reference ray), views (reference included), ref_image (index into the poses), correlation,
+  // reprojection_px, marker_corner (1: a marker corner of the sparse cloud, not measured here).
   PointCloud cloud;
   std::vector<ReferenceStats> references;
   std::array<double, 6> box{};
   std::size_t free_space_removed = 0;
+  // Markers masked in a photo whose observations do not show them whole: their corners, placed
+  // in space from the other photos, projected into it (one count per marker and photo).
+  std::size_t markers_projected = 0;
+  std::size_t marker_corners = 0;  // the sparse cloud's marker corners written (marker_corner 1)
 };
 
 using Progress = std::function<void(const std::string&)>;
