@@ -94,6 +94,14 @@ cv::Mat marker_mask(const std::vector<Quad>& quads, int width, int height, doubl
   return mask;
 }
 
+// Whether all four corners of `marker` (point ids marker * 4 + 0..3) are in `corners`.
+bool whole_marker(const std::map<PointId, Eigen::Vector3d>& corners, PointId marker) {
+  for (PointId c = 0; c < 4; ++c) {
+    if (!corners.count(marker * 4 + c)) return false;
+  }
+  return true;
+}
+
 // The marker corners in space, from their observations in the photos: the point nearest to all
 // of a corner's rays in the least-squares sense, X = (sum P_i)^-1 sum P_i c_i with
 // P_i = I - d_i d_i^T (d_i the unit ray from centre c_i; Hartley & Zisserman 2003, 12.2's
@@ -135,9 +143,10 @@ std::map<PointId, Eigen::Vector3d> marker_corners_in_space(const std::vector<std
   return out;
 }
 
-// The sparse cloud's marker corners (its coded targets' tracks) inside the box, as points of the dense cloud. The markers are
-// masked in every photo, so the dense points leave a hole at each; their corners, measured by
-// the bundle adjustment from detect's sub-pixel corners, hold the fitted surface across it.
+// The sparse cloud's marker corners (its coded targets' tracks) inside the box, as points of the
+// dense cloud. The markers are masked in every photo, so the dense points leave a hole at each;
+// their corners, measured by the bundle adjustment from detect's sub-pixel corners, hold the
+// fitted surface across it.
 // Normal: the marker's plane (the cross product of its diagonals, Hartley & Zisserman 2003, 2.2)
 // when its four corners are there, else the direction to the cameras; turned to face the
 // cameras' mean centre. sigma_mm, views and reprojection_px come from the sparse cloud when it
@@ -171,7 +180,7 @@ std::vector<DensePoint> marker_corner_points(const PointCloud& sparse, const std
     if (!in_box(box, X)) continue;
     const PointId m = id / 4 * 4;
     Eigen::Vector3d n = (eye - X).normalized();
-    if (corner.count(m) && corner.count(m + 1) && corner.count(m + 2) && corner.count(m + 3)) {
+    if (whole_marker(corner, id / 4)) {
       const Eigen::Vector3d plane = (corner[m + 2] - corner[m]).cross(corner[m + 3] - corner[m + 1]);
       if (plane.norm() > 0) n = plane.dot(eye - X) >= 0 ? plane.normalized() : Eigen::Vector3d(-plane.normalized());
     }
@@ -349,10 +358,7 @@ DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Pr
     const auto corners = marker_corners_in_space(obs_of, views, cam, kMarkerMinAngleDeg);
     std::set<PointId> markers;
     for (const auto& [id, X] : corners) {
-      if (corners.count(id / 4 * 4) && corners.count(id / 4 * 4 + 1) && corners.count(id / 4 * 4 + 2) &&
-          corners.count(id / 4 * 4 + 3)) {
-        markers.insert(id / 4);
-      }
+      if (whole_marker(corners, id / 4)) markers.insert(id / 4);
     }
     const double* k = cam.params.data();
     const geometry::ModelShape shape = geometry::shape_of(cam);
