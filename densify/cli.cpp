@@ -50,6 +50,17 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_flag("!--no-marker-corners", o.marker_corners,
                "Leave out the sparse cloud's marker corners, which are otherwise written with the dense points (marker_corner 1) to hold the fitted surface across the masked markers")
       ->group(grow);
+  app.add_flag("!--no-marker-squares", o.marker_squares,
+               "Leave the markers' printed squares unmeasured (otherwise each is measured from the photos that see it most squarely, starting from the surface its corners and the points around it predict)")
+      ->group(grow);
+  app.add_option("--marker-square-views", o.marker_square_views, "A marker's square is measured from this many photos (as references)")
+      ->group(grow)->check(tool::finite_in(1, 64))->capture_default_str();
+  app.add_option("--marker-square-window", o.marker_square_window,
+                 "... with a window of this half-width, in marker sides in the photo (at least --half-window-px)")
+      ->group(grow)->check(tool::finite_in(0, 2))->capture_default_str();
+  app.add_option("--marker-square-tolerance", o.marker_square_tolerance,
+                 "... and keeps a point within this many marker sides of the surface predicted there")
+      ->group(grow)->check(tool::finite_in(0, 1))->capture_default_str();
   app.add_option("--box-margin", o.box_margin, "Without --box: the sparse cloud's box grown by this share of its size on each side")
       ->group(grow)->check(tool::finite_in(0, 10))->capture_default_str();
   app.add_option("--free-space-min-violations", o.free_space_min_violations,
@@ -210,7 +221,12 @@ void report(const DensifyResult& result, const DensifyInputs& in) {
             format_double(median(e)) + " px; " + std::to_string(result.free_space_removed) +
             " removed by the free-space check; " + std::to_string(result.markers_projected) +
             " markers masked in photos where they were not detected (projected from the others); " +
-            std::to_string(result.marker_corners) + " marker corners of the sparse cloud written with them");
+            std::to_string(result.marker_corners) + " marker corners of the sparse cloud written with them; " +
+            std::to_string(result.marker_square_points) + " points measured on " + std::to_string(result.marker_squares_measured) +
+            " markers' printed squares" +
+            (result.marker_squares_unpredicted ? " (" + std::to_string(result.marker_squares_unpredicted) +
+                                                     " markers in the box not measured: too few points around them to predict the surface under them)"
+                                               : ""));
 }
 
 }  // namespace photomill::densify

@@ -200,6 +200,161 @@ std::vector<DensePoint> marker_corner_points(const PointCloud& sparse, const std
   return out;
 }
 
+// The markers' corners in space for the printed squares' measurement: the sparse cloud's
+// (bundle-adjusted from detect's sub-pixel corners) where it has all four of a marker's,
+// else those placed from the photos' rays (marker_corners_in_space).
+std::map<PointId, Eigen::Vector3d> best_marker_corners(const PointCloud& sparse,
+                                                       const std::map<PointId, Eigen::Vector3d>& from_rays) {
+  std::map<PointId, Eigen::Vector3d> adjusted;
+  if (const PointProperty* track = sparse.find("track_id")) {
+    for (std::size_t i = 0; i < sparse.points_mm.size(); ++i) {
+      const double id = track->values[i];
+      if (id >= 0 && id < kCodedIdLimit && sparse.points_mm[i].allFinite()) adjusted[static_cast<PointId>(id)] = sparse.points_mm[i];
+    }
+  }
+  std::map<PointId, Eigen::Vector3d> out;
+  std::set<PointId> markers;
+  for (const auto& [id, X] : adjusted) markers.insert(id / 4);
+  for (const auto& [id, X] : from_rays) markers.insert(id / 4);
+  for (PointId m : markers) {
+    const auto* src = whole_marker(adjusted, m) ? &adjusted : whole_marker(from_rays, m) ? &from_rays : nullptr;
+    if (!src) continue;
+    for (PointId c = 0; c < 4; ++c) out[m * 4 + c] = src->at(m * 4 + c);
+  }
+  return out;
+}
+
+// The surface under a marker's printed square, predicted in the marker's frame (origin its
+// centre, axes e1, e2 in its plane, n its normal) as a height h(a, b) = c0 + c1 a + c2 b + c3 a^2
+// + c4 a b + c5 b^2 fitted by least squares to its four corners (weight kCornerWeight each) and
+// the dense points around it (weight 1; marker_frame); dense points off the first fit by more
+// than reject_sides marker sides are dropped and the fit repeated once.
+struct MarkerFrame {
+  Eigen::Vector3d centre, e1, e2, n;
+  double side = 0;
+  Eigen::Matrix<double, 6, 1> h = Eigen::Matrix<double, 6, 1>::Zero();
+  static Eigen::Matrix<double, 6, 1> basis(double a, double b) {
+    Eigen::Matrix<double, 6, 1> r;
+    r << 1, a, b, a * a, a * b, b * b;
+    return r;
+  }
+  Eigen::Vector2d local(const Eigen::Vector3d& X) const { return {(X - centre).dot(e1), (X - centre).dot(e2)}; }
+  double height(double a, double b) const { return basis(a, b).dot(h); }
+  // How far X lies above the predicted surface, along n.
+  double off(const Eigen::Vector3d& X) const {
+    const Eigen::Vector2d ab = local(X);
+    return (X - centre).dot(n) - height(ab.x(), ab.y());
+  }
+  Eigen::Vector3d point(double a, double b) const { return centre + a * e1 + b * e2 + height(a, b) * n; }
+  Eigen::Vector3d normal(double a, double b) const {
+    const double ha = h[1] + 2 * h[3] * a + h[4] * b, hb = h[2] + h[4] * a + 2 * h[5] * b;
+    return (n - ha * e1 - hb * e2).normalized();
+  }
+};
+
+// A corner weighs as much as this many dense points in the prediction (it is measured from
+// detect's sub-pixel corners, the dense points from texture).
+constexpr double kCornerWeight = 10;
+// Dense points within this many marker sides of its centre (in its plane) enter the prediction.
+constexpr double kPredictionRadiusSides = 1.6;
+// ... at least this many of them.
+constexpr std::size_t kPredictionMinPoints = 30;
+
+std::optional<MarkerFrame> marker_frame(const std::array<Eigen::Vector3d, 4>& corner, const Eigen::Vector3d& eye,
+                                        const std::vector<Eigen::Vector3d>& dense, double reject_sides) {
+  MarkerFrame f;
+  f.centre = (corner[0] + corner[1] + corner[2] + corner[3]) / 4;
+  const Eigen::Vector3d plane = (corner[2] - corner[0]).cross(corner[3] - corner[1]);
+  if (!(plane.norm() > 0)) return std::nullopt;
+  f.n = plane.dot(eye - f.centre) >= 0 ? plane.normalized() : Eigen::Vector3d(-plane.normalized());
+  f.e1 = (corner[1] - corner[0]).normalized();
+  f.e1 = (f.e1 - f.e1.dot(f.n) * f.n).normalized();
+  f.e2 = f.n.cross(f.e1);
+  for (int k = 0; k < 4; ++k) f.side += (corner[(k + 1) % 4] - corner[k]).norm() / 4;
+  if (!f.e2.allFinite() || !(f.side > 0)) return std::nullopt;
+  std::vector<std::pair<Eigen::Vector3d, double>> data;
+  for (const auto& c : corner) data.emplace_back(c, kCornerWeight);
+  for (const auto& X : dense) {
+    const Eigen::Vector2d ab = f.local(X);
+    if (ab.norm() <= kPredictionRadiusSides * f.side && std::abs((X - f.centre).dot(f.n)) < f.side) data.emplace_back(X, 1);
+  }
+  if (data.size() < 4 + kPredictionMinPoints) return std::nullopt;
+  for (int round = 0; round < 2; ++round) {
+    Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+    std::size_t used = 0;
+    for (const auto& [X, w] : data) {
+      if (round == 1 && w == 1 && std::abs(f.off(X)) > reject_sides * f.side) continue;
+      const Eigen::Vector2d ab = f.local(X) / f.side;
+      const Eigen::Matrix<double, 6, 1> q = MarkerFrame::basis(ab.x(), ab.y());
+      A += w * q * q.transpose();
+      b += w * q * ((X - f.centre).dot(f.n));
+      used += w == 1;
+    }
+    if (used < kPredictionMinPoints) return std::nullopt;
+    const Eigen::Matrix<double, 6, 1> c = A.ldlt().solve(b);
+    if (!c.allFinite()) return std::nullopt;
+    // Back from side-scaled coordinates.
+    const double s = f.side;
+    f.h << c[0], c[1] / s, c[2] / s, c[3] / (s * s), c[4] / (s * s), c[5] / (s * s);
+  }
+  return f;
+}
+
+// The largest window a marker's square is measured with (half-width, px).
+constexpr int kSquareMaxHalfWindowPx = 40;
+// Radius of the neighbourhood a marker square's point is compared with, in marker sides.
+constexpr double kSquareNeighbourSides = 0.1;
+// Fewest neighbours a marker square's point must have to be kept.
+constexpr std::size_t kSquareMinNeighbours = 5;
+// A point further than this many robust standard deviations from its neighbours is dropped.
+constexpr double kSquareRejectSigmas = 3;
+
+// Drops the points measured on a marker's square that disagree with their neighbours: each
+// point's height above the predicted surface (MarkerFrame::off) against the median of its
+// neighbours' within kSquareNeighbourSides, compared with the robust spread of these
+// differences over the square (1.4826 times their median absolute value: the standard
+// deviation of a normal distribution; Rousseeuw & Croux 1993). The prediction's own error is
+// smooth and cancels between neighbours; a window that locked onto the wrong cell does not.
+template <class Point>
+void reject_unlike_neighbours(const MarkerFrame& frame, std::vector<Point>* points) {
+  const std::size_t n = points->size();
+  std::vector<Eigen::Vector2d> ab(n);
+  std::vector<double> off(n), diff(n, INFINITY);
+  for (std::size_t i = 0; i < n; ++i) {
+    ab[i] = frame.local((*points)[i].xyz);
+    off[i] = frame.off((*points)[i].xyz);
+  }
+  const double r2 = std::pow(kSquareNeighbourSides * frame.side, 2);
+  std::vector<double> near;
+  for (std::size_t i = 0; i < n; ++i) {
+    near.clear();
+    for (std::size_t j = 0; j < n; ++j) {
+      if (j != i && (ab[j] - ab[i]).squaredNorm() <= r2) near.push_back(off[j]);
+    }
+    if (near.size() < kSquareMinNeighbours) continue;
+    std::nth_element(near.begin(), near.begin() + static_cast<std::ptrdiff_t>(near.size() / 2), near.end());
+    diff[i] = off[i] - near[near.size() / 2];
+  }
+  std::vector<double> abs_diff;
+  for (double d : diff) {
+    if (std::isfinite(d)) abs_diff.push_back(std::abs(d));
+  }
+  if (abs_diff.empty()) {
+    points->clear();
+    return;
+  }
+  std::nth_element(abs_diff.begin(), abs_diff.begin() + static_cast<std::ptrdiff_t>(abs_diff.size() / 2), abs_diff.end());
+  const double limit = kSquareRejectSigmas * 1.4826 * abs_diff[abs_diff.size() / 2];
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!(std::abs(diff[i]) <= limit)) continue;
+    if (kept != i) (*points)[kept] = std::move((*points)[i]);
+    ++kept;
+  }
+  points->resize(kept);
+}
+
 // A value as a Float32 property holds it (write_ply refuses a value its type cannot store). Not
 // inlined: GCC 12.2 at -O3 vectorised the round trip of two adjacent fields (a point's correlation
 // and reprojection error) into one that kept the doubles, and write_ply refused them.
@@ -354,8 +509,10 @@ DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Pr
   // the detector missed in one photo (too oblique, blurred, partly hidden) would otherwise be
   // measured there as surface: a printed square lying flat on the part, not the part.
   std::vector<std::vector<Quad>> quads_of(n_views);
+  std::vector<std::map<PointId, Quad>> detected_quads(n_views);  // the markers detect found whole in each photo
+  const auto corners_from_rays = marker_corners_in_space(obs_of, views, cam, kMarkerMinAngleDeg);
   {
-    const auto corners = marker_corners_in_space(obs_of, views, cam, kMarkerMinAngleDeg);
+    const auto& corners = corners_from_rays;
     std::set<PointId> markers;
     for (const auto& [id, X] : corners) {
       if (whole_marker(corners, id / 4)) markers.insert(id / 4);
@@ -364,6 +521,7 @@ DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Pr
     const geometry::ModelShape shape = geometry::shape_of(cam);
     for (std::size_t i = 0; i < n_views; ++i) {
       std::map<PointId, Quad> quads = observed_quads(obs_of[i]);
+      detected_quads[i] = quads;
       for (PointId m : markers) {
         if (quads.count(m)) continue;
         Quad q;
@@ -573,6 +731,140 @@ DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Pr
                std::to_string(points.size()) + " in all");
     }
   }
+  // The markers' printed squares, measured rather than grown into: their cells repeat every few
+  // pixels, and growth reaching a square from the part can lock a window one cell off. Each
+  // marker whose four corners are known (best_marker_corners) is measured from the
+  // marker_square_views photos that detected it most squarely: every cell inside its square in
+  // that photo starts from the surface predicted under it (MarkerFrame, from its corners and the
+  // dense points around it), and its point is kept only within marker_square_tolerance sides of
+  // that prediction along the marker's normal (a window one cell off lands the point a cell's
+  // width or more from it along the ray).
+  auto measure_marker_squares = [&]() {
+    // The window: marker_square_window of the marker's side in the reference photo, at least the
+    // growth's (a window of one or two cells of the pattern often sees one edge only).
+    const auto half_window = [&](const Quad& q) {
+      double side = 0;
+      for (std::size_t e = 0; e < 4; ++e) side += (q[(e + 1) % 4] - q[e]).norm() / 4;
+      return std::clamp(static_cast<int>(std::lround(o.marker_square_window * side)), o.patch.half_window_px,
+                        std::max(o.patch.half_window_px, kSquareMaxHalfWindowPx));
+    };
+    std::map<int, PatchMatcher> matchers;
+    for (const auto& quads : detected_quads) {
+      for (const auto& [m, q] : quads) {
+        const int h = half_window(q);
+        if (matchers.count(h)) continue;
+        PatchOptions po = o.patch;
+        po.half_window_px = h;
+        matchers.emplace(h, PatchMatcher(cam, po));
+      }
+    }
+    const auto corners = best_marker_corners(in.sparse, corners_from_rays);
+    Eigen::Vector3d eye = Eigen::Vector3d::Zero();
+    for (const auto& c : centres) eye += c / static_cast<double>(n_views);
+    std::vector<PointId> markers;
+    for (const auto& [id, X] : corners) {
+      if (id % 4 == 0) markers.push_back(id / 4);
+    }
+    std::vector<Eigen::Vector3d> dense;
+    dense.reserve(points.size());
+    for (const DensePoint& p : points) dense.push_back(p.xyz);
+    std::vector<std::vector<DensePoint>> outs(markers.size());
+    std::atomic<std::size_t> measured{0}, unpredicted{0};
+    geometry::parallel_for(markers.size(), threads, [&](std::size_t k) {
+      const PointId m = markers[k];
+      std::array<Eigen::Vector3d, 4> c;
+      for (PointId i = 0; i < 4; ++i) c[static_cast<std::size_t>(i)] = corners.at(m * 4 + i);
+      if (!in_box(result.box, (c[0] + c[1] + c[2] + c[3]) / 4)) return;
+      const auto frame = marker_frame(c, eye, dense, o.marker_square_tolerance);
+      if (!frame) {
+        ++unpredicted;
+        return;
+      }
+      std::vector<std::pair<double, std::size_t>> refs;
+      for (std::size_t i = 0; i < n_views; ++i) {
+        if (!detected_quads[i].count(m)) continue;
+        if (static_cast<int>(result.references[i].neighbours.size()) < o.patch.min_views - 1) continue;
+        refs.emplace_back(-frame->n.dot((centres[i] - frame->centre).normalized()), i);
+      }
+      std::sort(refs.begin(), refs.end());
+      if (refs.size() > static_cast<std::size_t>(o.marker_square_views)) refs.resize(static_cast<std::size_t>(o.marker_square_views));
+      if (!refs.empty()) ++measured;
+      PatchResult r;
+      for (const auto& [unused, ref] : refs) {
+        const Quad& q = detected_quads[ref].at(m);
+        const PatchMatcher& sq_matcher = matchers.at(half_window(q));
+        const Eigen::Matrix3d& R = views[ref].rotation;
+        const Eigen::Vector3d& t = views[ref].translation_mm;
+        const int cols = views[ref].grey.cols, rows = views[ref].grey.rows;
+        const int gw = static_cast<int>(cols / s), gh = static_cast<int>(rows / s);
+        double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+        for (const auto& v : q) {
+          x0 = std::min(x0, v.x()), x1 = std::max(x1, v.x()), y0 = std::min(y0, v.y()), y1 = std::max(y1, v.y());
+        }
+        // Inside the (convex) quad: on the same side of its four edges.
+        const auto inside = [&](const Eigen::Vector2d& p) {
+          int pos = 0, neg = 0;
+          for (std::size_t e = 0; e < 4; ++e) {
+            const Eigen::Vector2d a = q[e], b = q[(e + 1) % 4];
+            const double z = (b - a).x() * (p - a).y() - (b - a).y() * (p - a).x();
+            pos += z > 0, neg += z < 0;
+          }
+          return pos == 0 || neg == 0;
+        };
+        const int cx0 = std::max(0, static_cast<int>(std::floor(x0 / s))), cx1 = std::min(gw - 1, static_cast<int>(std::ceil(x1 / s)));
+        const int cy0 = std::max(0, static_cast<int>(std::floor(y0 / s))), cy1 = std::min(gh - 1, static_cast<int>(std::ceil(y1 / s)));
+        for (int cy = cy0; cy <= cy1; ++cy) {
+          for (int cx = cx0; cx <= cx1; ++cx) {
+            const Eigen::Vector2i px(static_cast<int>(std::lround((cx + 0.5) * s - 0.5)), static_cast<int>(std::lround((cy + 0.5) * s - 0.5)));
+            if (!inside(px.cast<double>())) continue;
+            const auto ray = geometry::undistort(cam, px.cast<double>());
+            if (!ray) continue;
+            // Where the pixel's ray meets the predicted surface: meet its tangent plane, a few times.
+            const Eigen::Vector3d d = R.transpose() * Eigen::Vector3d(ray->x(), ray->y(), 1);
+            const Eigen::Vector3d& C = centres[ref];
+            Eigen::Vector3d X = frame->centre, N = frame->n;
+            for (int it = 0; it < 4; ++it) {
+              const double along = N.dot(X - C) / N.dot(d);
+              if (!(along > 0) || !std::isfinite(along)) break;
+              const Eigen::Vector2d ab = frame->local(C + along * d);
+              X = frame->point(ab.x(), ab.y());
+              N = frame->normal(ab.x(), ab.y());
+            }
+            const auto plane = plane_in_camera(R, t, X, N);
+            if (!plane) continue;
+            if (sq_matcher.measure(views, static_cast<int>(ref), px, *plane, result.references[ref].neighbours, &r) != PatchFailure::None) continue;
+            const Eigen::Vector3d P = R.transpose() * (r.point_ref - t);
+            if (!in_box(result.box, P) || std::abs(frame->off(P)) > o.marker_square_tolerance * frame->side) continue;
+            DensePoint dp;
+            dp.xyz = P;
+            dp.normal = R.transpose() * (-r.plane.normalized());
+            dp.footprint = s * r.point_ref.z() / cam.params[geometry::kFx];
+            dp.seen_by = {static_cast<int>(ref)};
+            dp.seen_by.insert(dp.seen_by.end(), r.views.begin(), r.views.end());
+            dp.sigma = r.sigma_along_ray;
+            dp.views = static_cast<int>(r.views.size()) + 1;
+            dp.ref = static_cast<int>(ref);
+            dp.correlation = r.correlation;
+            dp.reprojection_px = r.reprojection_px;
+            outs[k].push_back(std::move(dp));
+          }
+        }
+      }
+      reject_unlike_neighbours(*frame, &outs[k]);
+    });
+    for (auto& out : outs) {
+      result.marker_square_points += out.size();
+      points.insert(points.end(), out.begin(), out.end());
+    }
+    result.marker_squares_measured = measured;
+    result.marker_squares_unpredicted = unpredicted;
+    if (progress) {
+      progress("markers' printed squares: " + std::to_string(result.marker_square_points) + " points on " +
+               std::to_string(result.marker_squares_measured) + " markers (" + std::to_string(result.marker_squares_unpredicted) +
+               " in the box with too few points around them to predict the surface under them: not measured)");
+    }
+  };
+  if (o.marker_squares && !points.empty()) measure_marker_squares();
   if (o.free_space_min_violations > 0 && !points.empty()) {
     const std::vector<int> violations = free_space_violations(std::vector<SurfaceSample>(points.begin(), points.end()), views, cam,
                                                               o.free_space_gap_footprints, threads);

@@ -15,6 +15,9 @@
 //   Masks: markers with their quiet zones (detect's observations; a marker missed in a photo
 //   projected into it from the others), the part box (or the sparse
 //   cloud's box), the photos' borders.
+//   The markers' printed squares are then measured apart, each cell from the surface its
+//   corners and the dense points around it predict, with a window scaled to the marker
+//   (measure_marker_squares in densify.cpp).
 #pragma once
 
 #include <array>
@@ -51,6 +54,15 @@ struct DensifyOptions {
   // The sparse cloud's marker corners inside the box are written with the dense points (flagged
   // marker_corner): they hold the fitted surface across the masked markers.
   bool marker_corners = true;
+  // The markers' printed squares are measured (densify.cpp, measure_marker_squares) from the
+  // marker_square_views photos that see each most squarely, each cell starting from the surface
+  // predicted under the marker, with a window of half-width marker_square_window of the marker's
+  // side in the photo (at least patch.half_window_px); a point off that prediction by more than
+  // marker_square_tolerance marker sides is refused.
+  bool marker_squares = true;
+  int marker_square_views = 2;
+  double marker_square_window = 0.4;
+  double marker_square_tolerance = 0.03;
   // Points outside this box (XMIN, YMIN, ZMIN, XMAX, YMAX, ZMAX, world frame) are refused; by
   // default the sparse cloud's box grown by box_margin of its size on every side.
   std::optional<std::array<double, 6>> box;
@@ -104,6 +116,9 @@ struct DensifyResult {
   // in space from the other photos, projected into it (one count per marker and photo).
   std::size_t markers_projected = 0;
   std::size_t marker_corners = 0;  // the sparse cloud's marker corners written (marker_corner 1)
+  std::size_t marker_square_points = 0;      // points measured on the markers' printed squares
+  std::size_t marker_squares_measured = 0;   // markers whose squares were measured
+  std::size_t marker_squares_unpredicted = 0;  // markers in the box left out: too few points around them
 };
 
 using Progress = std::function<void(const std::string&)>;

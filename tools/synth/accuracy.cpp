@@ -194,8 +194,24 @@ bool on_judged_top(const synth::HeightField& h, double x, double y) {
   return x >= h.x_min_mm + margin && x <= h.x_max_mm - margin && y >= h.y_min_mm + margin && y <= h.y_max_mm - margin;
 }
 
-// Vertical deviation of the fitted surface from the true one, over the part's top.
-void surface_figures(Report& r, const synth::HeightField& h, const BSplineSurface& s, const Bounds& b) {
+// Vertical deviation of the fitted surface from the true one, over the part's top. The debug log
+// splits it between the squares densify leaves unmeasured around the part markers (each marker
+// grown by kMaskMarginSides of its side, densify's --marker-margin) and the rest of the top.
+void surface_figures(Report& r, const synth::PartScene& scene, const BSplineSurface& s, const Bounds& b) {
+  const synth::HeightField& h = scene.surface;
+  constexpr double kMaskMarginSides = 0.34;
+  const auto under_marker = [&](double x, double y) {
+    for (const synth::Marker& m : scene.markers) {
+      if (!m.on_part) continue;
+      const double q = kMaskMarginSides * m.size_mm;
+      if (x >= m.top_left_mm.x() - q && x <= m.top_left_mm.x() + m.size_mm + q && y >= m.top_left_mm.y() - m.size_mm - q &&
+          y <= m.top_left_mm.y() + q)
+        return true;
+    }
+    return false;
+  };
+  double split_sum[2] = {0, 0};
+  std::size_t split_n[2] = {0, 0};
   const double u0 = s.knots_u[s.degree_u], u1 = s.knots_u[s.num_poles_u];
   const double v0 = s.knots_v[s.degree_v], v1 = s.knots_v[s.num_poles_v];
   double sum = 0, max = 0;
@@ -207,6 +223,9 @@ void surface_figures(Report& r, const synth::HeightField& h, const BSplineSurfac
       if (!on_judged_top(h, p.x(), p.y())) continue;
       const double e = std::abs(p.z() - h.height_mm(p.x(), p.y()));
       sum += e * e;
+      const int k = under_marker(p.x(), p.y()) ? 1 : 0;
+      split_sum[k] += e * e;
+      ++split_n[k];
       if (e > max) {
         max = e;
         at_max = p;
@@ -215,6 +234,10 @@ void surface_figures(Report& r, const synth::HeightField& h, const BSplineSurfac
     }
   }
   if (n) log::debug("surface deviation max at (" + format_double(at_max.x()) + ", " + format_double(at_max.y()) + ")");
+  const auto rms = [&](int k) { return split_n[k] ? std::sqrt(split_sum[k] / static_cast<double>(split_n[k])) : NAN; };
+  if (n)
+    log::debug("surface deviation RMS under the part markers' masked squares: " + format_double(rms(1)) + " mm (" +
+               std::to_string(split_n[1]) + " of " + std::to_string(n) + " samples); elsewhere: " + format_double(rms(0)) + " mm");
   if (h.walled()) {
     // Within the margin of the walls (not judged): the worst deviation there, inside the fit's outline.
     double edge_max = 0, band_max[4] = {0, 0, 0, 0};
@@ -534,7 +557,7 @@ void evaluate(const fs::path& set, const fs::path& out, std::map<std::string, st
     report.missing("surface deviation RMS", w);
     report.missing("surface deviation max", w);
   } else {
-    surface_figures(report, scene.surface, read<BSplineSurface>(out / "surface.txt", read_surface), bounds);
+    surface_figures(report, scene, read<BSplineSurface>(out / "surface.txt", read_surface), bounds);
   }
   if (const auto w = why("toolpath", out / "path.cl"); !w.empty()) {
     report.missing("tool path gouge max", w);
