@@ -143,6 +143,18 @@ std::map<PointId, Eigen::Vector3d> marker_corners_in_space(const std::vector<std
   return out;
 }
 
+// The sparse cloud's coded targets' tracks (ids below kCodedIdLimit, finite): id -> row.
+std::map<PointId, std::size_t> coded_rows(const PointCloud& sparse) {
+  std::map<PointId, std::size_t> rows;
+  const PointProperty* track = sparse.find("track_id");
+  if (!track) return rows;
+  for (std::size_t i = 0; i < sparse.points_mm.size(); ++i) {
+    const double id = track->values[i];
+    if (id >= 0 && id < kCodedIdLimit && sparse.points_mm[i].allFinite()) rows[static_cast<PointId>(id)] = i;
+  }
+  return rows;
+}
+
 // The sparse cloud's marker corners (its coded targets' tracks) inside the box, as points of the
 // dense cloud. The markers are masked in every photo, so the dense points leave a hole at each;
 // their corners, measured by the bundle adjustment from detect's sub-pixel corners, hold the
@@ -155,21 +167,14 @@ std::vector<DensePoint> marker_corner_points(const PointCloud& sparse, const std
                                              const std::vector<Eigen::Vector3d>& centres,
                                              const std::vector<std::vector<const Observation*>>& obs_of) {
   std::vector<DensePoint> out;
-  const PointProperty* track = sparse.find("track_id");
-  if (!track) return out;
   const PointProperty* sigma = sparse.find("sigma_mm");
   const PointProperty* views = sparse.find("views");
   const PointProperty* reprojection = sparse.find("reproj_rms_px");
   Eigen::Vector3d eye = Eigen::Vector3d::Zero();
   for (const auto& c : centres) eye += c / static_cast<double>(centres.size());
   std::map<PointId, Eigen::Vector3d> corner;
-  std::map<PointId, std::size_t> row;
-  for (std::size_t i = 0; i < sparse.points_mm.size(); ++i) {
-    const double id = track->values[i];
-    if (!(id >= 0 && id < kCodedIdLimit) || !sparse.points_mm[i].allFinite()) continue;
-    corner[static_cast<PointId>(id)] = sparse.points_mm[i];
-    row[static_cast<PointId>(id)] = i;
-  }
+  const std::map<PointId, std::size_t> row = coded_rows(sparse);
+  for (const auto& [id, i] : row) corner[id] = sparse.points_mm[i];
   std::map<PointId, int> first_photo;
   for (std::size_t v = 0; v < obs_of.size(); ++v) {
     for (const Observation* o : obs_of[v]) {
@@ -185,7 +190,7 @@ std::vector<DensePoint> marker_corner_points(const PointCloud& sparse, const std
       if (plane.norm() > 0) n = plane.dot(eye - X) >= 0 ? plane.normalized() : Eigen::Vector3d(-plane.normalized());
     }
     if (!n.allFinite()) continue;
-    const std::size_t r = row[id];
+    const std::size_t r = row.at(id);
     DensePoint p;
     p.xyz = X;
     p.normal = n;
@@ -206,12 +211,7 @@ std::vector<DensePoint> marker_corner_points(const PointCloud& sparse, const std
 std::map<PointId, Eigen::Vector3d> best_marker_corners(const PointCloud& sparse,
                                                        const std::map<PointId, Eigen::Vector3d>& from_rays) {
   std::map<PointId, Eigen::Vector3d> adjusted;
-  if (const PointProperty* track = sparse.find("track_id")) {
-    for (std::size_t i = 0; i < sparse.points_mm.size(); ++i) {
-      const double id = track->values[i];
-      if (id >= 0 && id < kCodedIdLimit && sparse.points_mm[i].allFinite()) adjusted[static_cast<PointId>(id)] = sparse.points_mm[i];
-    }
-  }
+  for (const auto& [id, i] : coded_rows(sparse)) adjusted[id] = sparse.points_mm[i];
   std::map<PointId, Eigen::Vector3d> out;
   std::set<PointId> markers;
   for (const auto& [id, X] : adjusted) markers.insert(id / 4);
@@ -353,6 +353,24 @@ void reject_unlike_neighbours(const MarkerFrame& frame, std::vector<Point>* poin
     ++kept;
   }
   points->resize(kept);
+}
+
+// The dense point of an accepted patch measured in reference photo `ref` (pose R, t; world
+// X = R^T (x_ref - t)), whose cell is `spacing_px` wide.
+DensePoint measured_point(const PatchResult& r, int ref, const Eigen::Matrix3d& R, const Eigen::Vector3d& t, double spacing_px,
+                          double fx) {
+  DensePoint dp;
+  dp.xyz = R.transpose() * (r.point_ref - t);
+  dp.normal = R.transpose() * (-r.plane.normalized());
+  dp.footprint = spacing_px * r.point_ref.z() / fx;
+  dp.seen_by = {ref};
+  dp.seen_by.insert(dp.seen_by.end(), r.views.begin(), r.views.end());
+  dp.sigma = r.sigma_along_ray;
+  dp.views = static_cast<int>(r.views.size()) + 1;
+  dp.ref = ref;
+  dp.correlation = r.correlation;
+  dp.reprojection_px = r.reprojection_px;
+  return dp;
 }
 
 // A value as a Float32 property holds it (write_ply refuses a value its type cannot store). Not
@@ -679,19 +697,7 @@ DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Pr
         cell.plane = r.plane;
         cell.correlation = static_cast<float>(r.correlation);
         ++out->stats.accepted;
-        std::vector<int> seen_by{static_cast<int>(ref)};
-        seen_by.insert(seen_by.end(), r.views.begin(), r.views.end());
-        DensePoint dp;
-        dp.xyz = X;
-        dp.normal = R.transpose() * (-r.plane.normalized());
-        dp.footprint = s * r.point_ref.z() / cam.params[geometry::kFx];
-        dp.seen_by = std::move(seen_by);
-        dp.sigma = r.sigma_along_ray;
-        dp.views = static_cast<int>(r.views.size()) + 1;
-        dp.ref = static_cast<int>(ref);
-        dp.correlation = r.correlation;
-        dp.reprojection_px = r.reprojection_px;
-        out->points.push_back(std::move(dp));
+        out->points.push_back(measured_point(r, static_cast<int>(ref), R, t, s, cam.params[geometry::kFx]));
         propose(cand.cell, r.plane, r.correlation);
       }
     };
@@ -833,19 +839,8 @@ DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Pr
             const auto plane = plane_in_camera(R, t, X, N);
             if (!plane) continue;
             if (sq_matcher.measure(views, static_cast<int>(ref), px, *plane, result.references[ref].neighbours, &r) != PatchFailure::None) continue;
-            const Eigen::Vector3d P = R.transpose() * (r.point_ref - t);
-            if (!in_box(result.box, P) || std::abs(frame->off(P)) > o.marker_square_tolerance * frame->side) continue;
-            DensePoint dp;
-            dp.xyz = P;
-            dp.normal = R.transpose() * (-r.plane.normalized());
-            dp.footprint = s * r.point_ref.z() / cam.params[geometry::kFx];
-            dp.seen_by = {static_cast<int>(ref)};
-            dp.seen_by.insert(dp.seen_by.end(), r.views.begin(), r.views.end());
-            dp.sigma = r.sigma_along_ray;
-            dp.views = static_cast<int>(r.views.size()) + 1;
-            dp.ref = static_cast<int>(ref);
-            dp.correlation = r.correlation;
-            dp.reprojection_px = r.reprojection_px;
+            DensePoint dp = measured_point(r, static_cast<int>(ref), R, t, s, cam.params[geometry::kFx]);
+            if (!in_box(result.box, dp.xyz) || std::abs(frame->off(dp.xyz)) > o.marker_square_tolerance * frame->side) continue;
             outs[k].push_back(std::move(dp));
           }
         }
