@@ -27,12 +27,13 @@ if [ $mode = sanitize ]; then
   # Warnings fail the Release pass (GCC); clang's own are shown here but do not stop the pass.
   werror=OFF
   # The benchmark programs no test runs are not built here (PHOTOMILL_BENCH_TOOLS; the Release
-  # pass builds them).
+  # pass builds them), nor the test programs whose every case is slow (PHOTOMILL_SLOW_TESTS,
+  # tests/slow.txt).
   # Without the precompiled header (CMakeLists.txt, PHOTOMILL_PCH): every unit then parses its
   # own includes, so one that forgets an #include fails here instead of compiling on the header.
   extra=(-DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG"
          "-DCMAKE_C_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG" -DPHOTOMILL_SANITIZE=ON -DPHOTOMILL_PCH=OFF
-         -DPHOTOMILL_BENCH_TOOLS=OFF)
+         -DPHOTOMILL_BENCH_TOOLS=OFF -DPHOTOMILL_SLOW_TESTS=OFF)
   export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:strict_string_checks=1}
   export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$PWD/tests/lsan.supp:print_suppressions=0}
   export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
