@@ -126,8 +126,8 @@ Coverage coverage(const synth::HeightField& h, const std::vector<Judged>& points
 
 // The mean signed offset of the on-part points by the true surface's Laplacian h_xx + h_yy
 // (central second differences over kLaplacianStepMm) in bins of kLaplacianBinPerMm, printed with
-// -v: a window matched on a curved surface without its curvature (or with its curvature
-// underestimated) puts the point below a cap (Laplacian < 0) and above a bowl.
+// -v: a bias of the matching that follows the surface's curvature shows as a trend, e.g. points
+// below the caps (Laplacian < 0) and above the bowls (docs/measurements/densify.md, session 66).
 constexpr double kLaplacianStepMm = 0.05, kLaplacianBinPerMm = 0.05;
 void log_offset_by_laplacian(const synth::HeightField& h, const std::vector<Judged>& on_part) {
   struct Bin {
