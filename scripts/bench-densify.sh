@@ -6,6 +6,7 @@
 # Prints the load average at the start, then one table row per scene:
 #   sparse_pts / dense_pts   densify_check's points_on_part of cloud.ply / dense.ply
 #   cover%, d_rms, d_median  densify_check on dense.ply: coverage_percent (1 mm cells), rms_mm, median_mm
+#   top%                     its top_coverage_percent: a walled part's 1 mm cells more than 2 mm inside its walls
 #   dens_s, dens_cpu, dens_MB  densify alone (make's dense.ply target under /usr/bin/time):
 #                            wall s, CPU s (user + system), peak resident MB
 #   sp_*, dn_*               synth_accuracy on the sparse chain's and the dense chain's outputs:
@@ -31,8 +32,8 @@ mkdir -p "$work"
 work=$(cd "$work" && pwd)
 
 echo "load average at start: $(cut -d' ' -f1-3 /proc/loadavg) ($(nproc) cores)"
-fmt='%-22s %-10s %-10s %-7s %-8s %-8s %-7s %-8s %-7s %-8s %-8s %-8s %-8s %-8s %-8s %6s %6s  %s\n'
-printf "$fmt" scene sparse_pts dense_pts cover% d_rms d_median dens_s dens_cpu dens_MB \
+fmt='%-22s %-10s %-10s %-7s %-7s %-8s %-8s %-7s %-8s %-7s %-8s %-8s %-8s %-8s %-8s %-8s %6s %6s  %s\n'
+printf "$fmt" scene sparse_pts dense_pts cover% top% d_rms d_median dens_s dens_cpu dens_MB \
   sp_rms sp_max sp_gouge dn_rms dn_max dn_gouge sp_s dn_s notes
 
 # One figure from densify_check's `name value` lines ("-" when absent).
@@ -89,7 +90,7 @@ for scene in "${scenes[@]}"; do
   dense=$("$build/tools/bin/densify_check" --truth "$set_dir" "$out/dense.ply" 2>/dev/null || true)
 
   printf "$fmt" "$scene" "$(check points_on_part "$sparse")" "$(check points_on_part "$dense")" \
-    "$(check coverage_percent "$dense" | cut -c1-6)" "$(check rms_mm "$dense" | cut -c1-8)" \
+    "$(check coverage_percent "$dense" | cut -c1-6)" "$(check top_coverage_percent "$dense" | cut -c1-6)" "$(check rms_mm "$dense" | cut -c1-8)" \
     "$(check median_mm "$dense" | cut -c1-8)" "$dens_s" "$dens_cpu" "$dens_mb" \
     "$(acc_fig 'surface deviation RMS' "$sp_acc" | cut -c1-8)" "$(acc_fig 'surface deviation max' "$sp_acc" | cut -c1-8)" \
     "$(acc_fig 'tool path gouge max' "$sp_acc" | cut -c1-8)" \

@@ -4,7 +4,10 @@
 // 1 mm) and signed vertical offset (mean), and the coverage of the part's rectangle, on a grid of
 // --cell-mm cells and on a 5 mm grid, by on-part points within 0.5 mm of the truth, the cells
 // under a part marker or its quiet zone left out. --distances writes each on-part point's figures;
-// -v adds the mean signed offset by the true surface's curvature (stderr).
+// -v adds the mean signed offset by the true surface's curvature (stderr). The top_ figures are
+// the same over the part's top alone: on a walled part, the rectangle less kWallMarginMm along its
+// walls (issue 24's "more than 2 mm in x, y from a wall's edge"); on a blended part, the whole
+// rectangle.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -38,6 +41,8 @@ constexpr double kVerticalWithinMm = 0.01;
 constexpr double kCoverMm = 0.5, kFarMm = 1;
 // The coarse coverage grid's cell.
 constexpr double kCoarseCellMm = 5;
+// A walled part's top: its rectangle less this band along the walls (as synth_accuracy judges it).
+constexpr double kWallMarginMm = 2;
 // Grids with more cells than this are refused (a mistyped --cell-mm).
 constexpr double kMaxCells = 1e8;
 
@@ -94,9 +99,9 @@ struct Coverage {
 // rectangle cut into cells of `cell_mm` from its (x_min, y_min) corner (the last column and row
 // narrower when the sides are not multiples of it), a point in the cell its (x, y) falls in (one
 // on the far edges in the last); the cells whose centre (of the part inside the rectangle) lies in
-// one of `excluded` are left out.
+// one of `excluded`, or within `margin_mm` of the rectangle's edge, are left out.
 Coverage coverage(const synth::HeightField& h, const std::vector<Judged>& points, double cell_mm,
-                  const std::vector<Box>& excluded) {
+                  const std::vector<Box>& excluded, double margin_mm = 0) {
   const auto cells = [&](double length) {
     return std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(length / cell_mm - 1e-9)));
   };
@@ -117,6 +122,10 @@ Coverage coverage(const synth::HeightField& h, const std::vector<Judged>& points
       const double x0 = h.x_min_mm + static_cast<double>(ix) * cell_mm;
       const double cx = (x0 + std::min(h.x_max_mm, x0 + cell_mm)) / 2;
       if (std::any_of(excluded.begin(), excluded.end(), [&](const Box& b) { return b.contains(cx, cy); })) continue;
+      if (cx < h.x_min_mm + margin_mm || cx > h.x_max_mm - margin_mm || cy < h.y_min_mm + margin_mm ||
+          cy > h.y_max_mm - margin_mm) {
+        continue;
+      }
       ++c.considered;
       c.covered += covered[iy * nx + ix] ? 1 : 0;
     }
@@ -252,9 +261,26 @@ int main(int argc, char** argv) {
         const double mean_signed = on_part.empty() ? NAN : sum_signed / n;
         const double median = quantile(distances, 0.5), p95 = quantile(distances, 0.95);
 
+        // The part's top alone.
+        const double top_margin_mm = h.walled() ? kWallMarginMm : 0;
+        std::vector<double> top_distances;
+        double top_sum_sq = 0;
+        for (const Judged& j : on_part) {
+          const double x = j.p.x(), y = j.p.y();
+          if (x < h.x_min_mm + top_margin_mm || x > h.x_max_mm - top_margin_mm || y < h.y_min_mm + top_margin_mm ||
+              y > h.y_max_mm - top_margin_mm) {
+            continue;
+          }
+          top_distances.push_back(j.distance_mm);
+          top_sum_sq += j.distance_mm * j.distance_mm;
+        }
+        const double top_rms = top_distances.empty() ? NAN : std::sqrt(top_sum_sq / static_cast<double>(top_distances.size()));
+        const double top_median = quantile(top_distances, 0.5);
+
         const std::vector<Box> zones = part_marker_zones(scene);
         const Coverage fine = coverage(h, on_part, cell_mm, zones);
         const Coverage coarse = coverage(h, on_part, kCoarseCellMm, zones);
+        const Coverage top = coverage(h, on_part, cell_mm, zones, top_margin_mm);
         log::info("coverage: " + std::to_string(fine.covered) + " of " + std::to_string(fine.considered) +
                   " cells of " + format_double(cell_mm) + " mm hold a point within " + format_double(kCoverMm) +
                   " mm of the truth (" + std::to_string(zones.size()) + " part markers' quiet zones left out); " +
@@ -276,6 +302,12 @@ int main(int argc, char** argv) {
                   << "coverage_percent " << figure(fine.percent()) << "\n"
                   << "cells5_considered " << coarse.considered << "\n"
                   << "cells5_covered " << coarse.covered << "\n"
-                  << "coverage5_percent " << figure(coarse.percent()) << "\n";
+                  << "coverage5_percent " << figure(coarse.percent()) << "\n"
+                  << "top_points " << top_distances.size() << "\n"
+                  << "top_rms_mm " << figure(top_rms) << "\n"
+                  << "top_median_mm " << figure(top_median) << "\n"
+                  << "top_cells_considered " << top.considered << "\n"
+                  << "top_cells_covered " << top.covered << "\n"
+                  << "top_coverage_percent " << figure(top.percent()) << "\n";
       });
 }
