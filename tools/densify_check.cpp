@@ -5,7 +5,7 @@
 // --cell-mm cells and on a 5 mm grid, by on-part points within 0.5 mm of the truth, the cells
 // under a part marker or its quiet zone left out. --distances writes each on-part point's figures;
 // -v adds the mean signed offset by the true surface's curvature (stderr). The top_ figures are
-// the same over the part's top alone: on a walled part, the rectangle less kWallMarginMm along its
+// the same over the part's top alone: on a walled part, the rectangle less synth::kWallMarginMm along its
 // walls (issue 24's "more than 2 mm in x, y from a wall's edge"); on a blended part, the whole
 // rectangle.
 #include <algorithm>
@@ -41,8 +41,6 @@ constexpr double kVerticalWithinMm = 0.01;
 constexpr double kCoverMm = 0.5, kFarMm = 1;
 // The coarse coverage grid's cell.
 constexpr double kCoarseCellMm = 5;
-// A walled part's top: its rectangle less this band along the walls (as synth_accuracy judges it).
-constexpr double kWallMarginMm = 2;
 // Grids with more cells than this are refused (a mistyped --cell-mm).
 constexpr double kMaxCells = 1e8;
 
@@ -95,6 +93,11 @@ struct Coverage {
   }
 };
 
+// (x, y) over the part's rectangle less `margin_mm` on every side (closed).
+bool inside_rectangle(const synth::HeightField& h, double x, double y, double margin_mm) {
+  return x >= h.x_min_mm + margin_mm && x <= h.x_max_mm - margin_mm && y >= h.y_min_mm + margin_mm && y <= h.y_max_mm - margin_mm;
+}
+
 // Coverage of the part's rectangle by the on-part points within kCoverMm of the truth: the
 // rectangle cut into cells of `cell_mm` from its (x_min, y_min) corner (the last column and row
 // narrower when the sides are not multiples of it), a point in the cell its (x, y) falls in (one
@@ -122,10 +125,7 @@ Coverage coverage(const synth::HeightField& h, const std::vector<Judged>& points
       const double x0 = h.x_min_mm + static_cast<double>(ix) * cell_mm;
       const double cx = (x0 + std::min(h.x_max_mm, x0 + cell_mm)) / 2;
       if (std::any_of(excluded.begin(), excluded.end(), [&](const Box& b) { return b.contains(cx, cy); })) continue;
-      if (cx < h.x_min_mm + margin_mm || cx > h.x_max_mm - margin_mm || cy < h.y_min_mm + margin_mm ||
-          cy > h.y_max_mm - margin_mm) {
-        continue;
-      }
+      if (!inside_rectangle(h, cx, cy, margin_mm)) continue;
       ++c.considered;
       c.covered += covered[iy * nx + ix] ? 1 : 0;
     }
@@ -262,15 +262,11 @@ int main(int argc, char** argv) {
         const double median = quantile(distances, 0.5), p95 = quantile(distances, 0.95);
 
         // The part's top alone.
-        const double top_margin_mm = h.walled() ? kWallMarginMm : 0;
+        const double top_margin_mm = h.walled() ? synth::kWallMarginMm : 0;
         std::vector<double> top_distances;
         double top_sum_sq = 0;
         for (const Judged& j : on_part) {
-          const double x = j.p.x(), y = j.p.y();
-          if (x < h.x_min_mm + top_margin_mm || x > h.x_max_mm - top_margin_mm || y < h.y_min_mm + top_margin_mm ||
-              y > h.y_max_mm - top_margin_mm) {
-            continue;
-          }
+          if (!inside_rectangle(h, j.p.x(), j.p.y(), top_margin_mm)) continue;
           top_distances.push_back(j.distance_mm);
           top_sum_sq += j.distance_mm * j.distance_mm;
         }

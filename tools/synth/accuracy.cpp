@@ -182,13 +182,9 @@ void marker_figures(Report& r, const std::map<PointId, Eigen::Vector3d>& truth, 
   r.line("marker corner 3D error max", n ? max : NAN, "mm", b.marker_max_mm);
 }
 
-// A walled part's top is judged from this far inside its walls (issue 24: "the true surface more
-// than 2 mm in x, y from a wall's edge"); a blended part's inside its edge blend.
-constexpr double kWallMarginMm = 2;
-
 // The part's top, where the surface and the material left are judged: inside a blended part's
-// edge blend, more than kWallMarginMm inside a walled part's walls.
-double judged_margin(const synth::HeightField& h) { return h.walled() ? kWallMarginMm : h.edge_blend_mm; }
+// edge blend, more than synth::kWallMarginMm inside a walled part's walls.
+double judged_margin(const synth::HeightField& h) { return h.walled() ? synth::kWallMarginMm : h.edge_blend_mm; }
 bool on_judged_top(const synth::HeightField& h, double x, double y) {
   const double margin = judged_margin(h);
   return x >= h.x_min_mm + margin && x <= h.x_max_mm - margin && y >= h.y_min_mm + margin && y <= h.y_max_mm - margin;

@@ -19,4 +19,8 @@ namespace photomill::synth {
 constexpr double kPointGridMm = 0.05, kPointReachMm = 3;
 double distance_to_surface(const HeightField& h, const Eigen::Vector3d& c, double within_mm);
 
+// A walled part's top is judged from this far inside its walls (issue 24: "the true surface more
+// than 2 mm in x, y from a wall's edge"; synth_accuracy, densify_check).
+constexpr double kWallMarginMm = 2;
+
 }  // namespace photomill::synth
