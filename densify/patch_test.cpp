@@ -6,7 +6,9 @@
 #include <cmath>
 #include <functional>
 #include <iostream>
+#include <optional>
 #include <random>
+#include <vector>
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
@@ -52,44 +54,71 @@ struct Texture {
   }
 };
 
-// The world point a pixel sees on z = h(x, y) (ray marching then bisection), nullopt if none.
+// The world point a pixel sees on z = h(x, y), nullopt if none: the first sign change of
+// g(s) = z(s) - h(x(s), y(s)) along the ray, marched in 1 mm steps from 40 mm before the ray
+// meets z = 0 (the test surfaces lie within 20 mm of it in the views' middle), then found to
+// 1e-10 mm by regula falsi with the Illinois modification (Dowell & Jarratt 1971, BIT 11:
+// the retained end's value is halved when one end is kept twice, so it converges
+// superlinearly and keeps the bracket).
+// `xy` is the pixel's undistorted ray (x, y, 1) in the view's frame.
+std::optional<Eigen::Vector3d> cast_ray(const PatchView& v, const Surface& h, const Eigen::Vector2d& xy) {
+  const Eigen::Vector3d C = -v.rotation.transpose() * v.translation_mm;
+  const Eigen::Vector3d d = v.rotation.transpose() * Eigen::Vector3d(xy.x(), xy.y(), 1).normalized();
+  auto g = [&](double s) { const Eigen::Vector3d p = C + s * d; return p.z() - h(p.x(), p.y()); };
+  if (!(d.z() < 0)) return std::nullopt;
+  const double s0 = -C.z() / d.z();
+  double lo = s0 - 40, glo = g(lo);
+  if (!(glo > 0)) return std::nullopt;
+  double hi = lo, ghi = glo;
+  while (ghi > 0) {
+    lo = hi;
+    glo = ghi;
+    hi += 1;
+    if (hi > s0 + 40) return std::nullopt;
+    ghi = g(hi);
+  }
+  for (int k = 0, kept = 0; k < 200 && hi - lo > 1e-10 && ghi != 0; ++k) {
+    const double m = (lo * ghi - hi * glo) / (ghi - glo), gm = g(m);
+    if (gm > 0) {
+      lo = m;
+      glo = gm;
+      if (kept == 1) ghi /= 2;
+      kept = 1;  // hi kept
+    } else {
+      hi = m;
+      ghi = gm;
+      if (kept == -1) glo /= 2;
+      kept = -1;  // lo kept
+    }
+    if (gm == 0) lo = m;
+  }
+  return C + (ghi == 0 ? hi : (lo + hi) / 2) * d;
+}
+
 std::optional<Eigen::Vector3d> cast(const geometry::CameraModel& cam, const PatchView& v, const Surface& h,
                                     const Eigen::Vector2d& px) {
   const auto xy = geometry::undistort(cam, px);
   if (!xy) return std::nullopt;
-  const Eigen::Vector3d C = -v.rotation.transpose() * v.translation_mm;
-  const Eigen::Vector3d d = v.rotation.transpose() * Eigen::Vector3d(xy->x(), xy->y(), 1).normalized();
-  auto above = [&](double s) { const Eigen::Vector3d p = C + s * d; return p.z() > h(p.x(), p.y()); };
-  // Marched in 0.5 mm steps from 40 mm before the ray meets z = 0 (the test surfaces lie within
-  // 20 mm of it in the views' middle), then bisected.
-  if (!(d.z() < 0)) return std::nullopt;
-  const double s0 = -C.z() / d.z();
-  double lo = s0 - 40, hi = 0;
-  for (double s = lo; s < s0 + 40; s += 0.5) {
-    if (!above(s)) {
-      hi = s;
-      break;
-    }
-    lo = s;
-  }
-  if (hi == 0) return std::nullopt;
-  for (int k = 0; k < 60; ++k) {
-    const double m = (lo + hi) / 2;
-    (above(m) ? lo : hi) = m;
-  }
-  return C + (lo + hi) / 2 * d;
+  return cast_ray(v, h, *xy);
 }
 
 Scene render(const Surface& h, const std::vector<std::pair<double, double>>& az_el, unsigned seed = 7) {
   Scene s;
   s.camera = test_camera();
   const Texture tex(seed);
+  // The views share the camera: each pixel's ray is undistorted once.
+  std::vector<std::optional<Eigen::Vector2d>> rays;
+  for (int y = 0; y < s.camera.height_px; ++y) {
+    for (int x = 0; x < s.camera.width_px; ++x) rays.push_back(geometry::undistort(s.camera, Eigen::Vector2d(x, y)));
+  }
   for (const auto& [az, el] : az_el) {
     PatchView v = look_at(az, el, 200);
     v.grey = cv::Mat(s.camera.height_px, s.camera.width_px, CV_32F, cv::Scalar(0));
     for (int y = 0; y < v.grey.rows; ++y) {
       for (int x = 0; x < v.grey.cols; ++x) {
-        if (const auto p = cast(s.camera, v, h, Eigen::Vector2d(x, y))) v.grey.at<float>(y, x) = static_cast<float>(tex(p->x(), p->y()));
+        const auto& xy = rays[static_cast<size_t>(y) * v.grey.cols + x];
+        if (!xy) continue;
+        if (const auto p = cast_ray(v, h, *xy)) v.grey.at<float>(y, x) = static_cast<float>(tex(p->x(), p->y()));
       }
     }
     s.views.push_back(v);
