@@ -43,6 +43,7 @@ struct DensePoint : SurfaceSample {
   double correlation;
   double reprojection_px;
   bool marker_corner = false;
+  double window_mm = 0;  // the matched window's half-width at the point's depth (0: a sparse point)
 };
 
 // The plane n . X = 1 in the frame of the camera (R, t) through world point P with world normal N:
@@ -370,6 +371,7 @@ DensePoint measured_point(const PatchResult& r, int ref, const Eigen::Matrix3d& 
   dp.ref = ref;
   dp.correlation = r.correlation;
   dp.reprojection_px = r.reprojection_px;
+  dp.window_mm = r.half_window_px * r.point_ref.z() / fx;
   return dp;
 }
 
@@ -907,13 +909,14 @@ DensifyResult densify(const DensifyInputs& in, const DensifyOptions& o, const Pr
   cloud.add_property("scalar_correlation", PlyScalar::Float32);
   cloud.add_property("scalar_reprojection_px", PlyScalar::Float32);
   cloud.add_property("scalar_marker_corner", PlyScalar::UInt8);
+  cloud.add_property("scalar_window_mm", PlyScalar::Float32);
   for (auto& p : cloud.properties) p.values.reserve(points.size());
   for (const DensePoint& p : points) {
     cloud.points_mm.push_back(p.xyz);
-    const double vals[9] = {f32(p.normal.x()), f32(p.normal.y()), f32(p.normal.z()), f32(p.sigma), static_cast<double>(p.views),
-                            static_cast<double>(p.ref), f32(p.correlation), f32(p.reprojection_px),
-                            p.marker_corner ? 1.0 : 0.0};
-    for (std::size_t k = 0; k < 9; ++k) cloud.properties[k].values.push_back(vals[k]);
+    const double vals[10] = {f32(p.normal.x()), f32(p.normal.y()), f32(p.normal.z()), f32(p.sigma), static_cast<double>(p.views),
+                             static_cast<double>(p.ref), f32(p.correlation), f32(p.reprojection_px),
+                             p.marker_corner ? 1.0 : 0.0, f32(p.window_mm)};
+    for (std::size_t k = 0; k < 10; ++k) cloud.properties[k].values.push_back(vals[k]);
   }
   return result;
 }

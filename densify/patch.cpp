@@ -551,6 +551,7 @@ PatchFailure PatchMatcher::measure(const std::vector<PatchView>& views, int ref,
   out->sigma_along_ray = std::sqrt(std::max(0.0, var_z)) * ray0.norm();
   out->views = active;
   out->iterations = iterations;
+  out->half_window_px = o.half_window_px;
   return PatchFailure::None;
 }
 

@@ -98,6 +98,9 @@ struct PatchResult {
   // the fitted window, patch.cpp); the reference's own observation is its pixel, whose ray the
   // point lies on (0).
   double reprojection_px = 0;
+  // The half-width of the window that measured it (PatchOptions::half_window_px, or the bend
+  // check's smaller window when that one gave the point).
+  int half_window_px = 0;
 };
 
 // The matcher for one reference photo: its camera, and the quadratic interpolation of the window.

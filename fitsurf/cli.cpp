@@ -321,12 +321,14 @@ void write_outputs(const Cli& c, const Options& options, const PointCloud& cloud
   }
   if (!c.uncertainty.empty()) {
     std::vector<Eigen::Vector3d> fitted;
-    std::vector<double> sigma;
+    std::vector<double> sigma, window;
     const PointProperty* ps = cloud.find("sigma_mm");
+    const PointProperty* pw = cloud.find("window_mm");  // densify's matching windows
     fitted.reserve(result.selection.kept.size());
     for (std::size_t k : result.selection.kept) {
       fitted.push_back(cloud.points_mm[k]);
       if (ps != nullptr) sigma.push_back(ps->values[k]);
+      if (pw != nullptr) window.push_back(pw->values[k]);
     }
     UncertaintyOptions uo = c.uncertainty_options;
     // rho: the net's knot span, the length over which the spline averages the points.
@@ -335,7 +337,7 @@ void write_outputs(const Cli& c, const Options& options, const PointCloud& cloud
                                 fr.box.length_v_mm() / std::max(1, fr.surface.num_poles_v - fr.surface.degree_v));
     if (result.prefit) uo.residual_floor_mm = std::max(uo.residual_floor_mm, result.prefit->loo_rms_mm);
     UncertaintySummary sum;
-    const UncertaintyGrid grid = surface_uncertainty(fitted, result.fit.residual_mm, result.fit.weight, sigma, uo, &sum);
+    const UncertaintyGrid grid = surface_uncertainty(fitted, result.fit.residual_mm, result.fit.weight, sigma, window, uo, &sum);
     const auto mm = [](double v) {
       char t[32];
       std::snprintf(t, sizeof t, "%.4f", v);

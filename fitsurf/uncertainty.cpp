@@ -95,17 +95,22 @@ double percentile(std::vector<double> v, double q) {
 
 UncertaintyGrid surface_uncertainty(const std::vector<Eigen::Vector3d>& points, const std::vector<double>& residual_mm,
                                     const std::vector<double>& weight, const std::vector<double>& point_sigma_mm,
-                                    const UncertaintyOptions& options, UncertaintySummary* summary) {
+                                    const std::vector<double>& point_window_mm, const UncertaintyOptions& options,
+                                    UncertaintySummary* summary) {
   if (!(options.cell_mm > 0) || !std::isfinite(options.cell_mm)) throw UsageError("uncertainty: the cell must be a positive length");
   if (!(options.residual_floor_mm >= 0) || !std::isfinite(options.residual_floor_mm)) throw UsageError("uncertainty: the residual floor must not be negative");
   if (!(options.resolution_mm >= 0) || !std::isfinite(options.resolution_mm)) throw UsageError("uncertainty: the resolution must not be negative");
   if (options.neighbours < 1 || options.neighbours > 1000) throw UsageError("uncertainty: neighbours must be 1-1000");
+  if (!(options.loo_max_extrapolation > 0) || !std::isfinite(options.loo_max_extrapolation)) {
+    throw UsageError("uncertainty: the leave-one-out extrapolation limit must be positive");
+  }
   if (residual_mm.size() != points.size() || (!weight.empty() && weight.size() != points.size()) ||
-      (!point_sigma_mm.empty() && point_sigma_mm.size() != points.size())) {
-    throw UsageError("uncertainty: one residual, weight and sigma per point");
+      (!point_sigma_mm.empty() && point_sigma_mm.size() != points.size()) ||
+      (!point_window_mm.empty() && point_window_mm.size() != points.size())) {
+    throw UsageError("uncertainty: one residual, weight, sigma and window per point");
   }
   std::vector<Eigen::Vector2d> xy;
-  std::vector<double> r2, s2, z;  // per kept point: residual^2, sigma^2, height
+  std::vector<double> r2, s2, z, w;  // per kept point: residual^2, sigma^2, height, window
   for (std::size_t k = 0; k < points.size(); ++k) {
     if (!weight.empty() && !(weight[k] > 0)) continue;
     if (!points[k].allFinite() || !std::isfinite(residual_mm[k])) continue;
@@ -114,17 +119,48 @@ UncertaintyGrid surface_uncertainty(const std::vector<Eigen::Vector3d>& points, 
     r2.push_back(std::max(residual_mm[k] * residual_mm[k], options.residual_floor_mm * options.residual_floor_mm));
     const double s = point_sigma_mm.empty() ? 0 : point_sigma_mm[k];
     s2.push_back(std::isfinite(s) && s > 0 ? s * s : 0);
+    const double wk = point_window_mm.empty() ? 0 : point_window_mm[k];
+    w.push_back(std::isfinite(wk) && wk > 0 ? wk : 0);
   }
   if (xy.size() < 2) throw GeometryError("uncertainty: fewer than 2 fitted points that are not outliers");
   const Buckets buckets(xy);
   std::vector<std::pair<double, std::size_t>> near;
 
+  // h: the median nearest-neighbour distance (over at most 20 000 points, evenly picked).
+  std::vector<double> nn;
+  const std::size_t every = std::max<std::size_t>(1, xy.size() / 20000);
+  for (std::size_t k = 0; k < xy.size(); k += every) {
+    buckets.nearest(xy[k], 1, k, near);
+    if (!near.empty()) nn.push_back(std::sqrt(near.front().first));
+  }
+  double h = percentile(nn, 0.5);
+  if (!(h > 0)) h = options.cell_mm;  // coincident points: the grid's own scale
+  const double rho = options.resolution_mm > 0 ? options.resolution_mm : 3 * h;
+
   // Leave-one-out: each point's height predicted from its n nearest others by a least-squares
-  // quadratic in x, y (a plane with fewer than 9 of them); e2[k] = (z_k - prediction)^2.
+  // quadratic in x, y (a plane with fewer than 9 of them); e2[k] = (z_k - prediction)^2. e is the
+  // error expected between points: a point its neighbours do not surround (the Mahalanobis
+  // distance of their centroid from it, under their covariance, above loo_max_extrapolation; a
+  // marker corner densify writes across a masked marker, beside one row of points) would be
+  // extrapolated to, its error the reach of the data, which the gap term d / rho covers: its e is 0.
   std::vector<double> e2(xy.size(), 0);
   const std::size_t n_loo = std::min(options.neighbours, xy.size() - 1);
   for (std::size_t k = 0; k < xy.size(); ++k) {
     buckets.nearest(xy[k], n_loo, k, near);
+    if (near.size() < 3) continue;
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (const auto& nb : near) mean += xy[nb.second] - xy[k];
+    mean /= static_cast<double>(near.size());
+    Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+    for (const auto& nb : near) {
+      const Eigen::Vector2d q = xy[nb.second] - xy[k] - mean;
+      cov += q * q.transpose();
+    }
+    cov /= static_cast<double>(near.size());
+    // mean' cov^-1 mean > L^2, written without the inverse: mean' adj(cov) mean > L^2 det(cov).
+    const double det = cov.determinant();
+    const double quad = mean.x() * mean.x() * cov(1, 1) - 2 * mean.x() * mean.y() * cov(0, 1) + mean.y() * mean.y() * cov(0, 0);
+    if (!(quad <= options.loo_max_extrapolation * options.loo_max_extrapolation * det)) continue;
     const int terms = near.size() >= 9 ? 6 : near.size() >= 4 ? 3 : 1;
     Eigen::MatrixXd a(static_cast<Eigen::Index>(near.size()), terms);
     Eigen::VectorXd b(static_cast<Eigen::Index>(near.size()));
@@ -138,17 +174,6 @@ UncertaintyGrid surface_uncertainty(const std::vector<Eigen::Vector3d>& points, 
     const double e = std::isfinite(coef(0)) ? coef(0) : 0;  // prediction minus z_k at the point itself
     e2[k] = e * e;
   }
-
-  // h: the median nearest-neighbour distance (over at most 20 000 points, evenly picked).
-  std::vector<double> nn;
-  const std::size_t every = std::max<std::size_t>(1, xy.size() / 20000);
-  for (std::size_t k = 0; k < xy.size(); k += every) {
-    buckets.nearest(xy[k], 1, k, near);
-    if (!near.empty()) nn.push_back(std::sqrt(near.front().first));
-  }
-  double h = percentile(nn, 0.5);
-  if (!(h > 0)) h = options.cell_mm;  // coincident points: the grid's own scale
-  const double rho = options.resolution_mm > 0 ? options.resolution_mm : 3 * h;
 
   Eigen::Vector2d lo = xy.front(), hi = xy.front();
   for (const auto& q : xy) lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
@@ -167,11 +192,14 @@ UncertaintyGrid surface_uncertainty(const std::vector<Eigen::Vector3d>& points, 
     for (std::size_t i = 0; i < g.nx; ++i) {
       const Eigen::Vector2d c(g.x0_mm + static_cast<double>(i) * g.step_mm, g.y0_mm + static_cast<double>(j) * g.step_mm);
       buckets.nearest(c, n, xy.size(), near);
-      double sr = 0, ss = 0, se = 0;
-      for (const auto& [d2, k] : near) sr += r2[k], ss += s2[k], se += e2[k];
+      double sr = 0, ss = 0, se = 0, sw = 0;
+      for (const auto& [d2, k] : near) sr += r2[k], ss += s2[k], se += e2[k], sw += w[k];
       const double s2_loc = std::max({sr, ss, se}) / static_cast<double>(near.size());
       const double d = std::sqrt(near.front().first);
-      const double m = static_cast<double>(std::max<std::size_t>(1, buckets.count_within(c, rho)));
+      double m = static_cast<double>(std::max<std::size_t>(1, buckets.count_within(c, rho)));
+      // Overlapping windows: the windows of mean half-width w that tile the disc of radius rho.
+      const double wm = sw / static_cast<double>(near.size());
+      if (wm > 0) m = std::min(m, std::max(1.0, M_PI * rho * rho / (4 * wm * wm)));
       g.sigma_mm[j * g.nx + i] = std::sqrt(s2_loc * (1 / m + (d / rho) * (d / rho)));
     }
   }

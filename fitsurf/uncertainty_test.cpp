@@ -36,7 +36,7 @@ Cloud plate(double hole, double sigma = 0) {
 UncertaintyGrid grid_of(const Cloud& c, UncertaintySummary* sum = nullptr) {
   UncertaintyOptions o;
   o.resolution_mm = 2;
-  return surface_uncertainty(c.p, c.r, c.w, c.s, o, sum);
+  return surface_uncertainty(c.p, c.r, c.w, c.s, {}, o, sum);
 }
 
 TEST(SurfaceUncertainty, SmallWhereDenseAndGrowingIntoAGap) {
@@ -72,16 +72,61 @@ TEST(SurfaceUncertainty, ScalesWithThePointsSigmaAndLeavesOutliersOut) {
   EXPECT_EQ(grid_of(c).sample(10, 10), small.sample(10, 10));
 }
 
+// Points whose matching windows overlap share their errors: the mean over the disc of radius rho
+// counts as many errors as windows tile it, pi rho^2 / (2 w)^2, between 1 and the points in it.
+TEST(SurfaceUncertainty, PointsOfOverlappingWindowsCountAsTheWindowsThatTileTheDisc) {
+  const Cloud c = plate(0, 0.1);
+  UncertaintyOptions o;
+  o.resolution_mm = 2;
+  const auto at = [&](double window_mm) {
+    return surface_uncertainty(c.p, c.r, c.w, c.s, std::vector<double>(c.p.size(), window_mm), o).sample(10, 10);
+  };
+  EXPECT_NEAR(at(0), 0.1 / std::sqrt(13.0), 1e-9);    // no window: each point its own error
+  EXPECT_NEAR(at(0.2), 0.1 / std::sqrt(13.0), 1e-9);  // 78 windows of 0.4 mm in the disc: the 13 points count
+  EXPECT_NEAR(at(1), 0.1 / std::sqrt(M_PI), 1e-9);    // 2 mm windows: pi of them
+  EXPECT_NEAR(at(5), 0.1, 1e-9);                      // one window over the whole disc: one error
+  // One window per point, or none.
+  EXPECT_THROW(surface_uncertainty(c.p, c.r, c.w, c.s, {1, 1}, o), UsageError);
+}
+
+// A point its neighbours do not surround (here: beside one row of points, as a marker corner
+// densify writes across a masked marker) gets no leave-one-out error: a quadratic through the row
+// would extrapolate to it, wildly across the row.
+TEST(SurfaceUncertainty, APointBesideOneRowIsNotExtrapolatedTo) {
+  Cloud c;
+  for (int i = 0; i <= 80; ++i) {  // a row along x, 0.5 mm apart, 0.1 mm wide, on the slope z = 0.5 y, 0.002 mm noise
+    const double y = 0.05 * (i % 3);
+    c.p.emplace_back(0.5 * i, y, 0.5 * y + 0.002 * std::sin(2.3 * i));
+    c.r.push_back(0.001);
+    c.w.push_back(1);
+  }
+  c.p.emplace_back(20, 2.7, 1.35);  // on the slope, 2.7 mm from the row
+  c.r.push_back(0.001);
+  c.w.push_back(1);
+  UncertaintyOptions o;
+  o.resolution_mm = 2;
+  const UncertaintyGrid g = surface_uncertainty(c.p, c.r, c.w, c.s, {}, o);
+  // At the point: the residuals' 0.001 mm and the gap to the row, not a wild extrapolation.
+  EXPECT_LT(g.sample(20, 2.7), 0.01);
+  EXPECT_LT(g.sample(20, 1.5), 0.01);
+  // With the limit raised, the quadratic's extrapolation is what the grid shows there.
+  o.loo_max_extrapolation = 1e6;
+  EXPECT_GT(surface_uncertainty(c.p, c.r, c.w, c.s, {}, o).sample(20, 2.7), 0.01);
+}
+
 TEST(SurfaceUncertainty, RefusesTooFewPointsAndBadOptions) {
   Cloud c = plate(0);
   UncertaintyOptions o;
   o.cell_mm = 0;
-  EXPECT_THROW(surface_uncertainty(c.p, c.r, c.w, c.s, o), UsageError);
+  EXPECT_THROW(surface_uncertainty(c.p, c.r, c.w, c.s, {}, o), UsageError);
   o = {};
   o.cell_mm = 1e-4;  // 400 million nodes
-  EXPECT_THROW(surface_uncertainty(c.p, c.r, c.w, c.s, o), UsageError);
+  EXPECT_THROW(surface_uncertainty(c.p, c.r, c.w, c.s, {}, o), UsageError);
+  o = {};
+  o.loo_max_extrapolation = 0;
+  EXPECT_THROW(surface_uncertainty(c.p, c.r, c.w, c.s, {}, o), UsageError);
   c.w.assign(c.w.size(), 0);
-  EXPECT_THROW(surface_uncertainty(c.p, c.r, c.w, c.s, {}), GeometryError);
+  EXPECT_THROW(surface_uncertainty(c.p, c.r, c.w, c.s, {}, {}), GeometryError);
 }
 
 }  // namespace
