@@ -63,7 +63,7 @@ TEST(DensifyCli, MeasuresThePartToHundredthsOfAMillimetre) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_TRUE(r.out.empty());
   const PointCloud cloud = read_cloud(job.path("dense.ply"));
-  for (const char* p : {"nx", "ny", "nz", "sigma_mm", "views", "ref_image", "correlation", "reprojection_px", "marker_corner"}) {
+  for (const char* p : {"nx", "ny", "nz", "sigma_mm", "views", "ref_image", "correlation", "reprojection_px", "marker_corner", "window_mm"}) {
     EXPECT_NE(cloud.find(p), nullptr) << p;
   }
   std::ifstream scene_in(kDemo / "scene.txt");
@@ -91,6 +91,14 @@ TEST(DensifyCli, MeasuresThePartToHundredthsOfAMillimetre) {
   std::vector<double> reprojection = cloud.find("reprojection_px")->values;
   std::sort(reprojection.begin(), reprojection.end());
   EXPECT_LT(reprojection[reprojection.size() / 2], 0.06);
+  // Each point's window: 9 px (5 px where the bend check's window gave it) at ~0.1-0.2 mm per px
+  // (fx 2400 px, photos 250-450 mm from the part).
+  std::vector<double> window = cloud.find("window_mm")->values;
+  std::sort(window.begin(), window.end());
+  EXPECT_GT(window.front(), 5 * 0.08);
+  EXPECT_LT(window.back(), 9 * 0.25);
+  EXPECT_GT(window[window.size() / 2] / 9, 0.1);
+  EXPECT_LT(window[window.size() / 2] / 9, 0.2);
 
   // The same bytes on one thread.
   const std::string two = read_file(job.path("dense.ply"));
