@@ -3,7 +3,6 @@
 #include "fitsurf/uncertainty.hpp"
 
 #include <cmath>
-#include <iostream>
 
 #include <gtest/gtest.h>
 
@@ -115,41 +114,6 @@ TEST(SurfaceUncertainty, APointBesideOneRowIsNotExtrapolatedTo) {
   EXPECT_GT(surface_uncertainty(c.p, c.r, c.w, c.s, {}, o).sample(20, 2.7), 0.01);
 }
 
-// A point of the 2026 saddle's dense cloud on its blend (slope ~2) and its 12 nearest points (x, y
-// offsets, mm, from it; heights): they lie in two rows, nearly on a conic, and the quadratic
-// through them predicted the point 8.7 mm off. The prediction falls back to the plane (0.11 mm).
-TEST(SurfaceUncertainty, APointAmongTwoRowsIsNotPredictedByADegenerateQuadratic) {
-  const double rows[13][3] = {
-      {0, 0, 21.388846447708612},
-      {0.031009200262346326, -0.16638881038390352, 21.190769875523916},
-      {0.020322944588137659, 0.16809049400090004, 21.247955193234006},
-      {0.10518387512723848, -0.14869589041385467, 21.038355721483793},
-      {-0.12599347216094259, 0.13306414466555339, 21.554408704261725},
-      {0.096304153714307006, 0.18617416255206365, 21.097231340635897},
-      {-0.11533799834503355, -0.20136638141353558, 21.497300567530615},
-      {0.24860764598438578, -0.11430704655083801, 20.728943779526944},
-      {-0.27108232280540534, 0.098288394408676538, 21.861819882683655},
-      {-0.26656487610542712, -0.23733119232394273, 21.799273384565129},
-      {0.27587974806571225, 0.22791249297016591, 20.820760859139686},
-      {0.39247940551996408, -0.079824389805253304, 20.419778709893691},
-      {-0.42055949597271081, 0.062630234623483716, 22.165121395942737}};
-  Cloud c;
-  for (const auto& p : rows) {
-    c.p.emplace_back(p[0], p[1], p[2]);
-    c.r.push_back(0.005);
-    c.w.push_back(1);
-  }
-  UncertaintyOptions o;
-  o.resolution_mm = 1.7;
-  o.cell_mm = 0.1;
-  const double held = surface_uncertainty(c.p, c.r, c.w, c.s, {}, o).sample(0, 0);
-  EXPECT_LT(held, 0.05);
-  o.loo_max_noise_gain = 1e9;  // every quadratic taken as it comes
-  const double wild = surface_uncertainty(c.p, c.r, c.w, c.s, {}, o).sample(0, 0);
-  EXPECT_GT(wild, 10 * held);
-  std::cerr << "sigma at the point: " << held << " mm (" << wild << " mm with every quadratic)\n";
-}
-
 TEST(SurfaceUncertainty, RefusesTooFewPointsAndBadOptions) {
   Cloud c = plate(0);
   UncertaintyOptions o;
@@ -160,9 +124,6 @@ TEST(SurfaceUncertainty, RefusesTooFewPointsAndBadOptions) {
   EXPECT_THROW(surface_uncertainty(c.p, c.r, c.w, c.s, {}, o), UsageError);
   o = {};
   o.loo_max_extrapolation = 0;
-  EXPECT_THROW(surface_uncertainty(c.p, c.r, c.w, c.s, {}, o), UsageError);
-  o = {};
-  o.loo_max_noise_gain = 0.5;
   EXPECT_THROW(surface_uncertainty(c.p, c.r, c.w, c.s, {}, o), UsageError);
   c.w.assign(c.w.size(), 0);
   EXPECT_THROW(surface_uncertainty(c.p, c.r, c.w, c.s, {}, {}), GeometryError);
