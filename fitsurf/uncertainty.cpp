@@ -105,6 +105,9 @@ UncertaintyGrid surface_uncertainty(const std::vector<Eigen::Vector3d>& points, 
   if (!(options.loo_max_extrapolation > 0) || !std::isfinite(options.loo_max_extrapolation)) {
     throw UsageError("uncertainty: the leave-one-out extrapolation limit must be positive");
   }
+  if (!(options.loo_max_noise_gain >= 1) || !std::isfinite(options.loo_max_noise_gain)) {
+    throw UsageError("uncertainty: the leave-one-out noise gain limit must be at least 1");
+  }
   if (residual_mm.size() != points.size() || (!weight.empty() && weight.size() != points.size()) ||
       (!point_sigma_mm.empty() && point_sigma_mm.size() != points.size()) ||
       (!point_window_mm.empty() && point_window_mm.size() != points.size())) {
@@ -139,7 +142,14 @@ UncertaintyGrid surface_uncertainty(const std::vector<Eigen::Vector3d>& points, 
   const double rho = options.resolution_mm > 0 ? options.resolution_mm : 3 * h;
 
   // Leave-one-out: each point's height predicted from its n nearest others by a least-squares
-  // quadratic in x, y (a plane with fewer than 9 of them); e2[k] = (z_k - prediction)^2. e is the
+  // quadratic in x, y (a plane with fewer than 9 of them); e2[k] = (z_k - prediction)^2. The
+  // prediction's noise is the neighbours' times g = sqrt([(A^T A)^-1]_00) (A the design matrix,
+  // its first column the constant: the intercept's variance factor, as a regression's leverage);
+  // a model whose g exceeds loo_max_noise_gain falls back to the plane, then to the mean. Dense
+  // points lie in rows (a photo's pixel rows on the surface): 12 neighbours in two rows nearly
+  // satisfy a quadratic equation of their own, and the quadratic's intercept there is noise
+  // amplified 10 to 2 000 times (one point 8.7 mm off on the 2026 saddle's blend); a sparse
+  // cloud's quadratics reach gains of 3-10 where they are right (docs/fitsurf.md). e is the
   // error expected between points: a point its neighbours do not surround (the Mahalanobis
   // distance of their centroid from it, under their covariance, above loo_max_extrapolation; a
   // marker corner densify writes across a masked marker, beside one row of points) would be
@@ -162,17 +172,24 @@ UncertaintyGrid surface_uncertainty(const std::vector<Eigen::Vector3d>& points, 
     const double det = cov.determinant();
     const double quad = mean.x() * mean.x() * cov(1, 1) - 2 * mean.x() * mean.y() * cov(0, 1) + mean.y() * mean.y() * cov(0, 0);
     if (!(quad <= options.loo_max_extrapolation * options.loo_max_extrapolation * det)) continue;
-    const int terms = near.size() >= 9 ? 6 : near.size() >= 4 ? 3 : 1;
-    Eigen::MatrixXd a(static_cast<Eigen::Index>(near.size()), terms);
+    Eigen::MatrixXd full(static_cast<Eigen::Index>(near.size()), 6);
     Eigen::VectorXd b(static_cast<Eigen::Index>(near.size()));
     for (std::size_t r = 0; r < near.size(); ++r) {
       const Eigen::Vector2d q = xy[near[r].second] - xy[k];
-      const double row[6] = {1, q.x(), q.y(), q.x() * q.x(), q.x() * q.y(), q.y() * q.y()};
-      for (int c = 0; c < terms; ++c) a(static_cast<Eigen::Index>(r), c) = row[c];
+      full.row(static_cast<Eigen::Index>(r)) << 1, q.x(), q.y(), q.x() * q.x(), q.x() * q.y(), q.y() * q.y();
       b(static_cast<Eigen::Index>(r)) = z[near[r].second] - z[k];
     }
-    const Eigen::VectorXd coef = a.colPivHouseholderQr().solve(b);
-    const double e = std::isfinite(coef(0)) ? coef(0) : 0;  // prediction minus z_k at the point itself
+    double e = 0;  // prediction minus z_k at the point itself
+    for (const int terms : {6, 3, 1}) {
+      if (static_cast<int>(near.size()) < (terms == 6 ? 9 : terms == 3 ? 4 : 1)) continue;
+      const Eigen::MatrixXd a = full.leftCols(terms);
+      const Eigen::MatrixXd normal = a.transpose() * a;
+      const double gain2 = normal.inverse()(0, 0);
+      if (terms > 1 && !(gain2 <= options.loo_max_noise_gain * options.loo_max_noise_gain)) continue;
+      const Eigen::VectorXd coef = a.colPivHouseholderQr().solve(b);
+      e = std::isfinite(coef(0)) ? coef(0) : 0;
+      break;
+    }
     e2[k] = e * e;
   }
 

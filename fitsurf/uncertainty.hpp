@@ -51,6 +51,9 @@ struct UncertaintyOptions {
   // deviations from it (Mahalanobis distance) is not surrounded by them: it has no leave-one-out
   // error (uncertainty.cpp).
   double loo_max_extrapolation = 3;
+  // The leave-one-out quadratic (else plane) is used only if its prediction at the point carries
+  // the neighbours' noise at most this many times (uncertainty.cpp); else the next simpler model.
+  double loo_max_noise_gain = 10;
 };
 
 struct UncertaintySummary {

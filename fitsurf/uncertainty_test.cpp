@@ -3,7 +3,9 @@
 #include "fitsurf/uncertainty.hpp"
 
 #include <cmath>
+#include <iostream>
 
+#include <Eigen/LU>  // inverse()
 #include <gtest/gtest.h>
 
 #include "formats/error.hpp"
@@ -114,6 +116,73 @@ TEST(SurfaceUncertainty, APointBesideOneRowIsNotExtrapolatedTo) {
   EXPECT_GT(surface_uncertainty(c.p, c.r, c.w, c.s, {}, o).sample(20, 2.7), 0.01);
 }
 
+// A point of the 2026 saddle's dense cloud on its blend (slope ~2) and its 12 nearest points (x, y
+// offsets, mm, from it; heights): they lie in two rows, nearly on a conic, and the quadratic
+// through them predicted the point 8.7 mm off. The prediction falls back to the plane (0.11 mm).
+TEST(SurfaceUncertainty, APointAmongTwoRowsIsNotPredictedByADegenerateQuadratic) {
+  const double rows[13][3] = {
+      {0, 0, 21.388846447708612},
+      {0.031009200262346326, -0.16638881038390352, 21.190769875523916},
+      {0.020322944588137659, 0.16809049400090004, 21.247955193234006},
+      {0.10518387512723848, -0.14869589041385467, 21.038355721483793},
+      {-0.12599347216094259, 0.13306414466555339, 21.554408704261725},
+      {0.096304153714307006, 0.18617416255206365, 21.097231340635897},
+      {-0.11533799834503355, -0.20136638141353558, 21.497300567530615},
+      {0.24860764598438578, -0.11430704655083801, 20.728943779526944},
+      {-0.27108232280540534, 0.098288394408676538, 21.861819882683655},
+      {-0.26656487610542712, -0.23733119232394273, 21.799273384565129},
+      {0.27587974806571225, 0.22791249297016591, 20.820760859139686},
+      {0.39247940551996408, -0.079824389805253304, 20.419778709893691},
+      {-0.42055949597271081, 0.062630234623483716, 22.165121395942737}};
+  Cloud c;
+  for (const auto& p : rows) {
+    c.p.emplace_back(p[0], p[1], p[2]);
+    c.r.push_back(0.005);
+    c.w.push_back(1);
+  }
+  UncertaintyOptions o;
+  o.resolution_mm = 1.7;
+  o.cell_mm = 0.1;
+  const double held = surface_uncertainty(c.p, c.r, c.w, c.s, {}, o).sample(0, 0);
+  EXPECT_LT(held, 0.05);
+  o.loo_max_noise_gain = 1e9;  // every quadratic taken as it comes
+  const double wild = surface_uncertainty(c.p, c.r, c.w, c.s, {}, o).sample(0, 0);
+  EXPECT_GT(wild, 10 * held);
+  std::cerr << "sigma at the point: " << held << " mm (" << wild << " mm with every quadratic)\n";
+}
+
+// Sparse points in three clusters around a point on a curved surface z = 0.2 (x^2 + y^2): the
+// point is surrounded (its neighbours' centroid 1.3 of their standard deviations away), and the
+// quadratic through them carries their noise 5.2 times (the plane's 0.47 times). The quadratic,
+// exact here, is kept: falling back to the plane would take the curvature for an error. (On the
+// sparse demo 11 of 7 675 points have a gain between 3 and 10; a limit of 3 doubled the stock's
+// excess p95 there, docs/measurements/parts.md, session 69.)
+TEST(SurfaceUncertainty, AModeratelyConditionedQuadraticIsKept) {
+  const double xy[13][2] = {{0, 0},         {-0.78, -1.01}, {0.88, -0.68}, {0.48, 0.33}, {-0.73, -0.98},
+                            {0.78, -0.47},  {0.59, 0.24},   {-0.67, -1.04}, {0.84, -0.54}, {0.5, 0.44},
+                            {-0.56, -1.04}, {0.66, -0.43},  {0.52, 0.28}};
+  Cloud c;
+  Eigen::MatrixXd a(12, 6);
+  for (int k = 0; k < 13; ++k) {
+    const double x = xy[k][0], y = xy[k][1];
+    c.p.emplace_back(x, y, 0.2 * (x * x + y * y));
+    c.r.push_back(0.001);
+    c.w.push_back(1);
+    if (k > 0) a.row(k - 1) << 1, x, y, x * x, x * y, y * y;
+  }
+  const double gain = std::sqrt((a.transpose() * a).inverse()(0, 0));
+  ASSERT_GT(gain, 3);  // the configuration the test is about
+  ASSERT_LT(gain, UncertaintyOptions{}.loo_max_noise_gain);
+  UncertaintyOptions o;
+  o.resolution_mm = 1;
+  o.cell_mm = 0.1;
+  const double kept = surface_uncertainty(c.p, c.r, c.w, c.s, {}, o).sample(0, 0);
+  o.loo_max_noise_gain = 3;  // the plane instead
+  const double plane = surface_uncertainty(c.p, c.r, c.w, c.s, {}, o).sample(0, 0);
+  EXPECT_GT(plane, 3 * kept);
+  std::cerr << "gain " << gain << "; sigma at the point: " << kept << " mm (" << plane << " mm with the plane)\n";
+}
+
 TEST(SurfaceUncertainty, RefusesTooFewPointsAndBadOptions) {
   Cloud c = plate(0);
   UncertaintyOptions o;
@@ -124,6 +193,9 @@ TEST(SurfaceUncertainty, RefusesTooFewPointsAndBadOptions) {
   EXPECT_THROW(surface_uncertainty(c.p, c.r, c.w, c.s, {}, o), UsageError);
   o = {};
   o.loo_max_extrapolation = 0;
+  EXPECT_THROW(surface_uncertainty(c.p, c.r, c.w, c.s, {}, o), UsageError);
+  o = {};
+  o.loo_max_noise_gain = 0.5;
   EXPECT_THROW(surface_uncertainty(c.p, c.r, c.w, c.s, {}, o), UsageError);
   c.w.assign(c.w.size(), 0);
   EXPECT_THROW(surface_uncertainty(c.p, c.r, c.w, c.s, {}, {}), GeometryError);
